@@ -1,0 +1,48 @@
+#include "core/util/cancel.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+namespace reconduit {
+namespace {
+
+TEST(CancelToken, CopiesShareTheFlag) {
+  CancelToken token;
+  const CancelToken copy = token;
+  EXPECT_FALSE(copy.IsCancelled());
+  EXPECT_NO_THROW(copy.ThrowIfCancelled());
+  token.RequestCancel();
+  EXPECT_TRUE(copy.IsCancelled());
+  EXPECT_THROW(copy.ThrowIfCancelled(), CancelledError);
+}
+
+TEST(CancelToken, ProbeIsThrottled) {
+  CancelToken token;
+  std::atomic<int> calls{0};
+  token.SetProbe([&] { return ++calls >= 3; }, std::chrono::hours(1));
+  for (int i = 0; i < 1000; ++i) EXPECT_FALSE(token.IsCancelled());
+  EXPECT_EQ(calls.load(), 1) << "the probe runs once per interval";
+}
+
+TEST(CancelToken, ProbeCanCancel) {
+  CancelToken token;
+  std::atomic<int> calls{0};
+  token.SetProbe([&] { return ++calls >= 3; }, std::chrono::milliseconds(0));
+  EXPECT_FALSE(token.IsCancelled());
+  EXPECT_FALSE(token.IsCancelled());
+  EXPECT_TRUE(token.IsCancelled());
+  EXPECT_TRUE(token.IsCancelled()) << "cancellation sticks";
+  EXPECT_EQ(calls.load(), 3);
+}
+
+TEST(CancelToken, CancelFromAnotherThread) {
+  CancelToken token;
+  std::thread t([token] { token.RequestCancel(); });
+  t.join();
+  EXPECT_TRUE(token.IsCancelled());
+}
+
+}  // namespace
+}  // namespace reconduit

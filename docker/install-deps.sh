@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package Reconduit needs to build, test and run.
+#
+# This is the one place the package list lives: the README's two commands, .ci/run and
+# docker/Dockerfile all call it. It is idempotent and returns in well under a second when
+# everything is already installed (it asks dpkg first and only calls apt-get for what is missing).
+#
+# Usage: docker/install-deps.sh [build|runtime]   (default: build = runtime + compilers + -dev)
+set -euo pipefail
+
+mode="${1:-build}"
+
+# Shared libraries the programs load at run time.
+runtime_packages=(
+  ca-certificates
+  libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406 libopencv-features2d406
+  libopencv-calib3d406 libopencv-flann406
+  libceres3 libexiv2-27 libzip4 libsqlite3-0
+  libboost-filesystem1.74.0 libboost-program-options1.74.0
+)
+
+# Toolchain, headers and test tools.
+build_packages=(
+  build-essential cmake ninja-build pkg-config git clang-format
+  libeigen3-dev libopencv-dev libceres-dev libsuitesparse-dev
+  libboost1.74-dev libboost-filesystem1.74-dev libboost-program-options1.74-dev
+  nlohmann-json3-dev libsqlite3-dev libzip-dev libtinygltf-dev libexiv2-dev
+  libgtest-dev libgmock-dev
+  curl zip unzip
+)
+
+case "$mode" in
+  runtime) wanted=("${runtime_packages[@]}") ;;
+  build) wanted=("${runtime_packages[@]}" "${build_packages[@]}") ;;
+  *) echo "usage: $0 [build|runtime]" >&2; exit 2 ;;
+esac
+
+missing=()
+for p in "${wanted[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ "${#missing[@]}" -eq 0 ]; then
+  echo "install-deps: all ${#wanted[@]} packages present"
+  exit 0
+fi
+
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then sudo="sudo"; else
+    echo "install-deps: missing packages (${missing[*]}) and not root; run as root or install sudo" >&2
+    exit 1
+  fi
+fi
+
+echo "install-deps: installing ${#missing[@]} packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install-deps: done"
