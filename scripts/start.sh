@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Quick start: install what is missing, build (Release), and run Reconduit on
+# http://localhost:8080 with an embedded SQLite database and a local ./data folder.
+#
+# One reconduit-server and one reconduit-worker run in the foreground of this script; Ctrl-C
+# (or SIGTERM) stops both. Every setting of the two programs can be given as an environment
+# variable (see `build/release/server/reconduit-server --help`), e.g.
+#   RECONDUIT_PORT=9000 RECONDUIT_DATA=/srv/reconduit bash scripts/start.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash docker/install-deps.sh build
+cmake --preset release >/dev/null
+cmake --build --preset release --target reconduit-server reconduit-worker
+
+data="${RECONDUIT_DATA:-$PWD/data}"
+mkdir -p "$data"
+export RECONDUIT_DATA="$data"
+
+build/release/worker/reconduit-worker &
+worker_pid=$!
+build/release/server/reconduit-server &
+server_pid=$!
+
+stop() {
+  kill -TERM "$server_pid" "$worker_pid" 2>/dev/null || true
+  wait "$server_pid" "$worker_pid" 2>/dev/null || true
+}
+trap stop INT TERM EXIT
+# Exit (and stop the other) as soon as either program exits.
+wait -n "$server_pid" "$worker_pid"

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# Installs what is missing, builds everything (Release, warnings as errors) and runs the whole
+# test suite: unit tests beside their code and the cross-module tests in tests/.
+# Exits non-zero on any failure. Longer evaluations are not part of this suite: see README
+# ("Benchmarks and long evaluations").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash docker/install-deps.sh build
+cmake --preset ci >/dev/null
+cmake --build --preset ci
+ctest --preset ci -j "$(nproc)" --label-exclude long
