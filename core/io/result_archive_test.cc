@@ -1,0 +1,96 @@
+#include "core/io/result_archive.h"
+
+#include "core/io/file_util.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <zip.h>
+
+#include <filesystem>
+#include <map>
+
+namespace reconduit {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ResultArchiveTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() /
+            (std::string("reconduit_archive_") +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "out" / "sparse");
+    ASSERT_TRUE(WriteFileAtomically(root_ / "out" / "report.json", "{\"ok\":true}\n").ok());
+    ASSERT_TRUE(WriteFileAtomically(root_ / "out" / "sparse" / "cameras.txt", "# cams\n").ok());
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  // name -> contents of every entry in a zip.
+  static std::map<std::string, std::string> ReadZip(const fs::path& path) {
+    std::map<std::string, std::string> entries;
+    int error = 0;
+    zip_t* archive = zip_open(path.c_str(), ZIP_RDONLY, &error);
+    EXPECT_NE(archive, nullptr);
+    if (archive == nullptr) return entries;
+    for (zip_int64_t i = 0; i < zip_get_num_entries(archive, 0); ++i) {
+      zip_stat_t st;
+      zip_stat_index(archive, i, 0, &st);
+      std::string data(st.size, '\0');
+      zip_file_t* file = zip_fopen_index(archive, i, 0);
+      zip_fread(file, data.data(), st.size);
+      zip_fclose(file);
+      entries[st.name] = data;
+    }
+    zip_close(archive);
+    return entries;
+  }
+
+  fs::path root_;
+};
+
+TEST_F(ResultArchiveTest, PacksEveryFileWithAVerifiableManifest) {
+  fs::create_symlink("/etc/passwd", root_ / "out" / "link");
+  auto summary = WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken());
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  EXPECT_FALSE(fs::exists(root_ / "result.zip.tmp"));
+
+  const auto entries = ReadZip(root_ / "result.zip");
+  ASSERT_EQ(entries.size(), 3u) << "report, cameras, manifest; never the symlink";
+  EXPECT_EQ(entries.at("sparse/cameras.txt"), "# cams\n");
+  const auto manifest = nlohmann::json::parse(entries.at("manifest.json"));
+  ASSERT_EQ(manifest["files"].size(), 2u);
+  for (const auto& file : manifest["files"]) {
+    const std::string& data = entries.at(file["name"].get<std::string>());
+    EXPECT_EQ(file["bytes"].get<std::int64_t>(), static_cast<std::int64_t>(data.size()));
+    EXPECT_EQ(file["sha256"].get<std::string>(), Sha256Hex(data));
+  }
+  EXPECT_EQ(summary->archive_bytes, static_cast<std::int64_t>(fs::file_size(root_ / "result.zip")));
+  EXPECT_EQ(summary->archive_sha256, *Sha256OfFile(root_ / "result.zip"));
+  EXPECT_EQ(summary->files.back().name, "manifest.json");
+}
+
+TEST_F(ResultArchiveTest, RewritingReplacesTheArchive) {
+  ASSERT_TRUE(WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken()).ok());
+  ASSERT_TRUE(WriteFileAtomically(root_ / "out" / "extra.txt", "more").ok());
+  ASSERT_TRUE(WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken()).ok());
+  EXPECT_EQ(ReadZip(root_ / "result.zip").count("extra.txt"), 1u);
+}
+
+TEST_F(ResultArchiveTest, MissingFolderIsNotFound) {
+  auto summary = WriteResultArchive(root_ / "nope", root_ / "result.zip", CancelToken());
+  EXPECT_EQ(summary.status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(ResultArchiveTest, CancelledLeavesNoArchive) {
+  CancelToken cancel;
+  cancel.RequestCancel();
+  EXPECT_THROW((void)WriteResultArchive(root_ / "out", root_ / "result.zip", cancel),
+               CancelledError);
+  EXPECT_FALSE(fs::exists(root_ / "result.zip"));
+  EXPECT_FALSE(fs::exists(root_ / "result.zip.tmp"));
+}
+
+}  // namespace
+}  // namespace reconduit

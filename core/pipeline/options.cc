@@ -1,0 +1,139 @@
+#include "core/pipeline/options.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace reconduit {
+namespace {
+
+std::string FormatNumber(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+std::string RangeText(const OptionSpec& spec) {
+  return "[" + FormatNumber(*spec.minimum) + ", " + FormatNumber(*spec.maximum) + "]";
+}
+
+// An integer field of any width, range-checked.
+template <typename T>
+OptionSpec IntegerOption(
+    std::string name, T PipelineOptions::*field, double minimum, double maximum, std::string help) {
+  OptionSpec spec{std::move(name), "integer", std::move(help), minimum, maximum, {}, {}};
+  spec.get = [field](const PipelineOptions& o) { return nlohmann::json(o.*field); };
+  spec.set = [field, spec](const nlohmann::json& j, PipelineOptions* o) -> std::string {
+    const bool integral = j.is_number_integer() ||
+                          (j.is_number_float() && std::floor(j.get<double>()) == j.get<double>());
+    const double v = j.is_number() ? j.get<double>() : 0.0;
+    if (!integral || v < *spec.minimum || v > *spec.maximum) {
+      return "option '" + spec.name + "' must be an integer in " + RangeText(spec) + ", got " +
+             j.dump();
+    }
+    o->*field = static_cast<T>(v);
+    return "";
+  };
+  return spec;
+}
+
+OptionSpec BooleanOption(std::string name, bool PipelineOptions::*field, std::string help) {
+  OptionSpec spec{std::move(name), "boolean", std::move(help), std::nullopt, std::nullopt, {}, {}};
+  spec.get = [field](const PipelineOptions& o) { return nlohmann::json(o.*field); };
+  spec.set = [field, name = spec.name](const nlohmann::json& j, PipelineOptions* o) -> std::string {
+    if (!j.is_boolean()) return "option '" + name + "' must be true or false, got " + j.dump();
+    o->*field = j.get<bool>();
+    return "";
+  };
+  return spec;
+}
+
+std::vector<OptionSpec> MakeSpecs() {
+  std::vector<OptionSpec> specs;
+  specs.push_back(IntegerOption("min_image_side", &PipelineOptions::min_image_side, 16, 10000,
+                                "Photos whose shorter side has fewer pixels are rejected."));
+  specs.push_back(IntegerOption(
+      "max_image_pixels", &PipelineOptions::max_image_pixels, 1e4, 1e9,
+      "Photos with more pixels are rejected before decoding (protects against decompression "
+      "bombs)."));
+  specs.push_back(BooleanOption(
+      "use_exif", &PipelineOptions::use_exif,
+      "Start from the EXIF focal length when a photo has one. Self-calibration still checks it."));
+  specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
+                                "Threads for parallel stages; 0 uses every core."));
+  return specs;
+}
+
+}  // namespace
+
+const std::vector<OptionSpec>& PipelineOptionSpecs() {
+  static const std::vector<OptionSpec> specs = MakeSpecs();
+  return specs;
+}
+
+bool PipelineOptions::Check(std::string* error) const {
+  // Range checks live in the spec table: round-trip every field through it.
+  for (const OptionSpec& spec : PipelineOptionSpecs()) {
+    PipelineOptions scratch;
+    const std::string message = spec.set(spec.get(*this), &scratch);
+    if (!message.empty()) {
+      if (error != nullptr) *error = message;
+      return false;
+    }
+  }
+  return true;
+}
+
+nlohmann::json DescribePipelineOptions() {
+  const PipelineOptions defaults;
+  nlohmann::json list = nlohmann::json::array();
+  for (const OptionSpec& spec : PipelineOptionSpecs()) {
+    nlohmann::json item = {{"name", spec.name},
+                           {"type", spec.type},
+                           {"default", spec.get(defaults)},
+                           {"help", spec.help}};
+    if (spec.minimum) item["minimum"] = *spec.minimum;
+    if (spec.maximum) item["maximum"] = *spec.maximum;
+    list.push_back(std::move(item));
+  }
+  return {{"options", list}};
+}
+
+Result<PipelineOptions> ParsePipelineOptions(const nlohmann::json& json) {
+  PipelineOptions options;
+  if (json.is_null()) return options;
+  if (!json.is_object()) {
+    return Status::InvalidArgument("options must be a JSON object, got " + json.dump());
+  }
+  for (const auto& [name, value] : json.items()) {
+    const OptionSpec* found = nullptr;
+    for (const OptionSpec& spec : PipelineOptionSpecs()) {
+      if (spec.name == name) found = &spec;
+    }
+    if (found == nullptr) {
+      return Status::InvalidArgument("unknown option '" + name +
+                                     "' (GET /api/v1/options lists them)");
+    }
+    if (std::string message = found->set(value, &options); !message.empty()) {
+      return Status::InvalidArgument(message);
+    }
+  }
+  return options;
+}
+
+Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text) {
+  nlohmann::json json;
+  try {
+    json = text.empty() ? nlohmann::json::object() : nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    return Status::InvalidArgument(std::string("options are not valid JSON: ") + e.what());
+  }
+  return ParsePipelineOptions(json);
+}
+
+nlohmann::json PipelineOptionsToJson(const PipelineOptions& options) {
+  nlohmann::json json = nlohmann::json::object();
+  for (const OptionSpec& spec : PipelineOptionSpecs()) json[spec.name] = spec.get(options);
+  return json;
+}
+
+}  // namespace reconduit

@@ -1,0 +1,69 @@
+// Pipeline options: one struct, one table of specs.
+//
+// The table (PipelineOptionSpecs) is the single source of truth for every option's name, type,
+// default, range and help text. The server serves it as GET /api/v1/options and validates the
+// `options` part of an upload with ParsePipelineOptions; the worker and the command line parse
+// the same JSON with the same function, so a value the API accepted is a value the pipeline
+// runs with. Names are the C++ field names (snake_case), so error messages match the API.
+//
+// Only options that change what the pipeline does today are listed; a stage adds its options
+// here when it lands.
+#ifndef RECONDUIT_CORE_PIPELINE_OPTIONS_H_
+#define RECONDUIT_CORE_PIPELINE_OPTIONS_H_
+
+#include "core/util/status.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace reconduit {
+
+struct PipelineOptions {
+  // Photos with a shorter side than this (pixels) are rejected at ingest. [16, 10000]
+  int min_image_side = 100;
+  // Photos with more pixels than this are rejected before decoding (decompression bombs).
+  // [1e4, 1e9]
+  std::int64_t max_image_pixels = 100'000'000;
+  // Use the EXIF focal length, when present, as the initial focal length. [bool]
+  bool use_exif = true;
+  // Worker threads for parallel stages; 0 = all cores. [0, 256]
+  int num_threads = 0;
+
+  // False, with a message naming the field, when a value is out of range.
+  bool Check(std::string* error) const;
+};
+
+// One option's metadata and accessors.
+struct OptionSpec {
+  std::string name;
+  std::string type;  // "integer", "number", "boolean" or "string" (JSON Schema names).
+  std::string help;
+  std::optional<double> minimum;  // Inclusive, for numbers.
+  std::optional<double> maximum;  // Inclusive, for numbers.
+  std::function<nlohmann::json(const PipelineOptions&)> get;
+  // Sets the field from JSON; returns an error message (naming the field) or "" on success.
+  std::function<std::string(const nlohmann::json&, PipelineOptions*)> set;
+};
+
+const std::vector<OptionSpec>& PipelineOptionSpecs();
+
+// {"options": [{"name", "type", "default", "minimum", "maximum", "help"}, ...]}
+nlohmann::json DescribePipelineOptions();
+
+// Parses a JSON object of options over the defaults. Unknown names, wrong types and values
+// out of range are InvalidArgument errors whose message names the field, e.g.
+// "option 'min_image_side' must be an integer in [16, 10000], got 3".
+Result<PipelineOptions> ParsePipelineOptions(const nlohmann::json& json);
+Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text);
+
+// All options with their values.
+nlohmann::json PipelineOptionsToJson(const PipelineOptions& options);
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_PIPELINE_OPTIONS_H_

@@ -1,0 +1,84 @@
+#include "core/pipeline/options.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+namespace reconduit {
+namespace {
+
+using ::testing::HasSubstr;
+
+TEST(PipelineOptions, DefaultsAreValid) {
+  std::string error;
+  EXPECT_TRUE(PipelineOptions().Check(&error)) << error;
+}
+
+TEST(PipelineOptions, CheckNamesTheField) {
+  PipelineOptions options;
+  options.min_image_side = 3;
+  std::string error;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_THAT(error, HasSubstr("min_image_side"));
+  EXPECT_THAT(error, HasSubstr("[16, 10000]"));
+}
+
+TEST(ParsePipelineOptions, OverridesDefaults) {
+  auto options = ParsePipelineOptionsText(R"({"min_image_side": 200, "use_exif": false})");
+  ASSERT_TRUE(options.ok()) << options.status();
+  EXPECT_EQ(options->min_image_side, 200);
+  EXPECT_FALSE(options->use_exif);
+  EXPECT_EQ(options->max_image_pixels, PipelineOptions().max_image_pixels);
+}
+
+TEST(ParsePipelineOptions, EmptyAndNullMeanDefaults) {
+  EXPECT_TRUE(ParsePipelineOptionsText("").ok());
+  EXPECT_TRUE(ParsePipelineOptionsText("{}").ok());
+  EXPECT_TRUE(ParsePipelineOptions(nlohmann::json()).ok());
+}
+
+TEST(ParsePipelineOptions, RejectsBadInputWithClearMessages) {
+  struct Case {
+    const char* text;
+    const char* expected;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"{not json", "not valid JSON"},
+           {"[1, 2]", "must be a JSON object"},
+           {R"({"colour": 1})", "unknown option 'colour'"},
+           {R"({"min_image_side": 5})",
+            "option 'min_image_side' must be an integer in [16, 10000], got 5"},
+           {R"({"min_image_side": 100.5})", "must be an integer"},
+           {R"({"min_image_side": "100"})", "must be an integer"},
+           {R"({"use_exif": 1})", "option 'use_exif' must be true or false"},
+           {R"({"num_threads": -1})", "num_threads"},
+       }) {
+    auto options = ParsePipelineOptionsText(c.text);
+    ASSERT_FALSE(options.ok()) << c.text;
+    EXPECT_EQ(options.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(options.status().message(), HasSubstr(c.expected)) << c.text;
+  }
+}
+
+TEST(DescribePipelineOptions, ListsEveryOptionWithDefaultsAndRanges) {
+  const nlohmann::json described = DescribePipelineOptions();
+  ASSERT_EQ(described["options"].size(), PipelineOptionSpecs().size());
+  const nlohmann::json& first = described["options"][0];
+  EXPECT_EQ(first["name"], "min_image_side");
+  EXPECT_EQ(first["type"], "integer");
+  EXPECT_EQ(first["default"], 100);
+  EXPECT_EQ(first["minimum"], 16);
+  EXPECT_FALSE(first["help"].get<std::string>().empty());
+}
+
+TEST(PipelineOptionsToJson, RoundTrips) {
+  PipelineOptions options;
+  options.num_threads = 3;
+  options.use_exif = false;
+  auto parsed = ParsePipelineOptions(PipelineOptionsToJson(options));
+  ASSERT_TRUE(parsed.ok());
+  EXPECT_EQ(parsed->num_threads, 3);
+  EXPECT_FALSE(parsed->use_exif);
+}
+
+}  // namespace
+}  // namespace reconduit

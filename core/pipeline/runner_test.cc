@@ -1,0 +1,166 @@
+#include "core/pipeline/runner.h"
+
+#include "core/io/file_util.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+
+namespace reconduit {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A toy stage: counts its runs, writes a file, and behaves as told.
+class ToyStage : public Stage {
+ public:
+  enum class Behaviour { kSucceed, kThrow, kCancelInside, kDegenerate };
+  ToyStage(std::string name, Behaviour behaviour, int* runs)
+      : name_(std::move(name)), behaviour_(behaviour), runs_(runs) {}
+  std::string_view Name() const override { return name_; }
+  std::string_view Title() const override { return "Toy"; }
+  StageResult Run(StageContext& context) const override {
+    ++*runs_;
+    EXPECT_TRUE(fs::is_directory(context.stage_dir));
+    EXPECT_TRUE(fs::is_empty(context.stage_dir)) << "the runner empties the stage folder";
+    std::ofstream(context.stage_dir / "out.txt") << name_;
+    context.progress.Restart(4, "items");
+    for (int i = 0; i < 4; ++i) context.progress.Advance();
+    switch (behaviour_) {
+      case Behaviour::kSucceed:
+        return StageResult::Success({{"items", 4}, {"previous", context.previous.size()}});
+      case Behaviour::kThrow:
+        throw std::runtime_error("disk on fire");
+      case Behaviour::kCancelInside:
+        context.cancel.RequestCancel();
+        context.cancel.ThrowIfCancelled();
+        return StageResult::Success();
+      case Behaviour::kDegenerate:
+        return StageResult::Degenerate("all photos show a flat wall");
+    }
+    return {};
+  }
+
+ private:
+  std::string name_;
+  Behaviour behaviour_;
+  int* runs_;
+};
+
+class RunnerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    workspace_.work_dir = fs::temp_directory_path() /
+                          (std::string("reconduit_runner_") +
+                           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(workspace_.work_dir);
+    fs::create_directories(workspace_.work_dir);
+  }
+  void TearDown() override { fs::remove_all(workspace_.work_dir); }
+
+  std::vector<std::unique_ptr<Stage>> Stages(ToyStage::Behaviour second) {
+    std::vector<std::unique_ptr<Stage>> stages;
+    stages.push_back(std::make_unique<ToyStage>("a", ToyStage::Behaviour::kSucceed, &runs_[0]));
+    stages.push_back(std::make_unique<ToyStage>("b", second, &runs_[1]));
+    stages.push_back(std::make_unique<ToyStage>("c", ToyStage::Behaviour::kSucceed, &runs_[2]));
+    return stages;
+  }
+
+  Workspace workspace_;
+  PipelineOptions options_;
+  int runs_[3] = {0, 0, 0};
+};
+
+TEST_F(RunnerTest, RunsAllStagesInOrderAndReportsProgress) {
+  std::vector<double> overall;
+  std::vector<std::string> ended;
+  PipelineCallbacks callbacks;
+  callbacks.on_progress = [&](const Stage&, const ProgressUpdate&, double o) {
+    overall.push_back(o);
+  };
+  callbacks.on_stage_end = [&](const Stage& s, const StageRecord&) {
+    ended.emplace_back(s.Name());
+  };
+  const PipelineResult result = RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_,
+                                            options_, CancelToken(), callbacks);
+  EXPECT_EQ(result.status, StageStatus::kSuccess);
+  ASSERT_EQ(result.stages.size(), 3u);
+  EXPECT_EQ(result.stages[2].summary["previous"], 2);
+  EXPECT_THAT(ended, ::testing::ElementsAre("a", "b", "c"));
+  ASSERT_FALSE(overall.empty());
+  EXPECT_TRUE(std::is_sorted(overall.begin(), overall.end()));
+  EXPECT_DOUBLE_EQ(overall.back(), 1.0);
+  EXPECT_TRUE(fs::exists(workspace_.StageDir("c") / "stage.json"));
+}
+
+TEST_F(RunnerTest, ExceptionFailsTheStageAndStops) {
+  const PipelineResult result =
+      RunPipeline(Stages(ToyStage::Behaviour::kThrow), workspace_, options_, CancelToken());
+  EXPECT_EQ(result.status, StageStatus::kFailed);
+  EXPECT_EQ(result.failed_stage, "b");
+  EXPECT_EQ(result.message, "disk on fire");
+  EXPECT_EQ(runs_[2], 0);
+  EXPECT_FALSE(fs::exists(workspace_.StageDir("b") / "stage.json"));
+}
+
+TEST_F(RunnerTest, DegenerateStopsWithItsMessage) {
+  const PipelineResult result =
+      RunPipeline(Stages(ToyStage::Behaviour::kDegenerate), workspace_, options_, CancelToken());
+  EXPECT_EQ(result.status, StageStatus::kDegenerate);
+  EXPECT_EQ(result.message, "all photos show a flat wall");
+}
+
+TEST_F(RunnerTest, CancellationInsideAStage) {
+  const PipelineResult result =
+      RunPipeline(Stages(ToyStage::Behaviour::kCancelInside), workspace_, options_, CancelToken());
+  EXPECT_EQ(result.status, StageStatus::kCancelled);
+  EXPECT_EQ(result.failed_stage, "b");
+  EXPECT_EQ(runs_[2], 0);
+}
+
+TEST_F(RunnerTest, CancelledBeforeStartRunsNothing) {
+  CancelToken cancel;
+  cancel.RequestCancel();
+  const PipelineResult result =
+      RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, cancel);
+  EXPECT_EQ(result.status, StageStatus::kCancelled);
+  EXPECT_EQ(runs_[0], 0);
+}
+
+TEST_F(RunnerTest, ResumesAfterTheLastFinishedStage) {
+  RunPipeline(Stages(ToyStage::Behaviour::kThrow), workspace_, options_, CancelToken());
+  ASSERT_EQ(runs_[0], 1);
+  // A leftover from the failed attempt must be cleared before the stage runs again.
+  std::ofstream(workspace_.StageDir("b") / "partial.tmp") << "x";
+  const PipelineResult result =
+      RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, CancelToken());
+  EXPECT_EQ(result.status, StageStatus::kSuccess);
+  EXPECT_EQ(runs_[0], 1) << "stage a finished before: not run again";
+  EXPECT_EQ(runs_[1], 2);
+  EXPECT_TRUE(result.stages[0].resumed);
+  EXPECT_FALSE(result.stages[1].resumed);
+  EXPECT_FALSE(fs::exists(workspace_.StageDir("b") / "partial.tmp"));
+  EXPECT_EQ(ReadFinishedStages(workspace_, Stages(ToyStage::Behaviour::kSucceed)).size(), 3u);
+}
+
+TEST_F(RunnerTest, StageAfterARerunStageRunsAgain) {
+  RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, CancelToken());
+  fs::remove(workspace_.StageDir("b") / "stage.json");  // b's outputs are suspect now.
+  RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, CancelToken());
+  EXPECT_EQ(runs_[0], 1);
+  EXPECT_EQ(runs_[1], 2);
+  EXPECT_EQ(runs_[2], 2) << "c consumed b's old outputs, so it runs again";
+}
+
+TEST_F(RunnerTest, InvalidOptionsThrow) {
+  options_.min_image_side = 1;
+  EXPECT_THROW(
+      RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, CancelToken()),
+      CheckError);
+}
+
+}  // namespace
+}  // namespace reconduit

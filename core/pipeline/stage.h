@@ -1,0 +1,105 @@
+// The stage interface the worker and the command line drive.
+//
+// A stage is a step of the pipeline (ingest, features, matching, ...) that reads its inputs
+// from the workspace (the photos, earlier stages' folders), writes its outputs into its own
+// folder work/<name>/ (and final deliverables into output/), reports progress in natural
+// units and honours the cancel token. Stages share nothing else, so each can be tested alone
+// and a job can restart from the first unfinished stage.
+#ifndef RECONDUIT_CORE_PIPELINE_STAGE_H_
+#define RECONDUIT_CORE_PIPELINE_STAGE_H_
+
+#include "core/pipeline/options.h"
+#include "core/util/cancel.h"
+#include "core/util/progress.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace reconduit {
+
+// A photo given to the pipeline.
+struct InputImage {
+  std::filesystem::path path;  // Where the bytes are (a generated name for uploads).
+  std::string name;            // The name to show and to export (as uploaded).
+};
+
+// Where a run reads and writes.
+struct Workspace {
+  std::vector<InputImage> images;
+  // Per-stage folders work_dir/<stage>/ with the stage's outputs and its stage.json marker.
+  std::filesystem::path work_dir;
+  // Deliverables, laid out exactly as inside result.zip.
+  std::filesystem::path output_dir;
+  // Where the packaging stage writes the zip; empty for no zip (the command line).
+  std::filesystem::path archive_path;
+
+  std::filesystem::path StageDir(std::string_view stage) const { return work_dir / stage; }
+};
+
+enum class StageStatus { kSuccess, kCancelled, kFailed, kDegenerate };
+std::string_view StageStatusName(StageStatus status);
+
+// What a stage returns. Defaults read as "did not run" (a failure), never as a success.
+struct StageResult {
+  StageStatus status = StageStatus::kFailed;
+  std::string message = "stage did not run";
+  // Counts and figures for the report and the job status (e.g. {"accepted": 11}).
+  nlohmann::json summary = nlohmann::json::object();
+
+  static StageResult Success(nlohmann::json summary = nlohmann::json::object()) {
+    return {StageStatus::kSuccess, "", std::move(summary)};
+  }
+  static StageResult Failed(std::string message) {
+    return {StageStatus::kFailed, std::move(message), nlohmann::json::object()};
+  }
+  static StageResult Degenerate(std::string message) {
+    return {StageStatus::kDegenerate, std::move(message), nlohmann::json::object()};
+  }
+};
+
+// A finished (or resumed) stage, as the runner records it in work/<stage>/stage.json.
+struct StageRecord {
+  std::string name;
+  StageStatus status = StageStatus::kFailed;
+  std::string message;
+  double seconds = 0.0;
+  std::int64_t peak_memory_bytes = 0;  // Process peak RSS when the stage ended.
+  nlohmann::json summary = nlohmann::json::object();
+  bool resumed = false;  // Taken from an earlier run instead of run again.
+
+  nlohmann::json ToJson() const;
+  static StageRecord FromJson(const nlohmann::json& json);
+};
+
+struct StageContext {
+  const Workspace& workspace;
+  const PipelineOptions& options;
+  Progress& progress;
+  const CancelToken& cancel;
+  // Records of the stages before this one, in order.
+  const std::vector<StageRecord>& previous;
+  // This stage's folder, empty and created by the runner.
+  std::filesystem::path stage_dir;
+};
+
+class Stage {
+ public:
+  virtual ~Stage() = default;
+  // Short machine name, also the folder name: "ingest", "features", ...
+  virtual std::string_view Name() const = 0;
+  // What a person reads in the status: "Reading photos".
+  virtual std::string_view Title() const = 0;
+  // Expected share of the whole run's time, for the overall progress figure (any scale).
+  virtual double Weight() const { return 1.0; }
+  // Does the work. May throw CancelledError (cancelled) or any exception (failed).
+  virtual StageResult Run(StageContext& context) const = 0;
+};
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_PIPELINE_STAGE_H_
