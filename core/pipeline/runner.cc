@@ -66,6 +66,7 @@ std::vector<StageRecord> ReadFinishedStages(const Workspace& workspace,
                                             const std::vector<std::unique_ptr<Stage>>& stages) {
   std::vector<StageRecord> records;
   for (const auto& stage : stages) {
+    if (!stage->Resumable()) break;
     auto record = ReadMarker(workspace.StageDir(stage->Name()));
     if (!record) break;
     records.push_back(std::move(*record));
@@ -103,6 +104,7 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
     const fs::path stage_dir = workspace.StageDir(name);
     if (callbacks.on_stage_start) callbacks.on_stage_start(stage);
 
+    if (!stage.Resumable()) may_resume = false;
     if (may_resume) {
       if (auto record = ReadMarker(stage_dir)) {
         record->resumed = true;

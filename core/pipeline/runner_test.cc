@@ -18,8 +18,9 @@ namespace fs = std::filesystem;
 class ToyStage : public Stage {
  public:
   enum class Behaviour { kSucceed, kThrow, kCancelInside, kDegenerate };
-  ToyStage(std::string name, Behaviour behaviour, int* runs)
-      : name_(std::move(name)), behaviour_(behaviour), runs_(runs) {}
+  ToyStage(std::string name, Behaviour behaviour, int* runs, bool resumable = true)
+      : name_(std::move(name)), behaviour_(behaviour), runs_(runs), resumable_(resumable) {}
+  bool Resumable() const override { return resumable_; }
   std::string_view Name() const override { return name_; }
   std::string_view Title() const override { return "Toy"; }
   StageResult Run(StageContext& context) const override {
@@ -48,6 +49,7 @@ class ToyStage : public Stage {
   std::string name_;
   Behaviour behaviour_;
   int* runs_;
+  bool resumable_;
 };
 
 class RunnerTest : public ::testing::Test {
@@ -153,6 +155,21 @@ TEST_F(RunnerTest, StageAfterARerunStageRunsAgain) {
   EXPECT_EQ(runs_[0], 1);
   EXPECT_EQ(runs_[1], 2);
   EXPECT_EQ(runs_[2], 2) << "c consumed b's old outputs, so it runs again";
+}
+
+TEST_F(RunnerTest, NonResumableStageRunsEveryTimeAndSoDoesWhatFollows) {
+  auto stages = [&] {
+    std::vector<std::unique_ptr<Stage>> s;
+    s.push_back(std::make_unique<ToyStage>("a", ToyStage::Behaviour::kSucceed, &runs_[0]));
+    s.push_back(std::make_unique<ToyStage>("b", ToyStage::Behaviour::kSucceed, &runs_[1], false));
+    s.push_back(std::make_unique<ToyStage>("c", ToyStage::Behaviour::kSucceed, &runs_[2]));
+    return s;
+  };
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+  EXPECT_EQ(runs_[0], 1);
+  EXPECT_EQ(runs_[1], 2);
+  EXPECT_EQ(runs_[2], 2);
 }
 
 TEST_F(RunnerTest, InvalidOptionsThrow) {

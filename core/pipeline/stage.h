@@ -96,6 +96,9 @@ class Stage {
   virtual std::string_view Title() const = 0;
   // Expected share of the whole run's time, for the overall progress figure (any scale).
   virtual double Weight() const { return 1.0; }
+  // False for a stage that must run every time (packaging: its output depends on which
+  // stages ran). A non-resumable stage also ends resuming for the stages after it.
+  virtual bool Resumable() const { return true; }
   // Does the work. May throw CancelledError (cancelled) or any exception (failed).
   virtual StageResult Run(StageContext& context) const = 0;
 };

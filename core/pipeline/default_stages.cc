@@ -1,0 +1,44 @@
+#include "core/pipeline/default_stages.h"
+
+#include "core/pipeline/stages/package_stage.h"
+
+#include <functional>
+#include <utility>
+
+namespace reconduit {
+namespace {
+
+using StageFactory = std::function<std::unique_ptr<Stage>()>;
+
+// The stages before packaging, in order. A stage is listed here when it exists.
+std::vector<std::pair<std::string, StageFactory>> WorkStages() { return {}; }
+
+}  // namespace
+
+std::vector<std::string> PipelineStageNames() {
+  std::vector<std::string> names;
+  for (const auto& [name, factory] : WorkStages()) names.push_back(name);
+  return names;
+}
+
+Result<std::vector<std::unique_ptr<Stage>>> CreatePipelineStages(const std::string& until) {
+  std::vector<std::unique_ptr<Stage>> stages;
+  bool found = until.empty();
+  for (const auto& [name, factory] : WorkStages()) {
+    stages.push_back(factory());
+    if (name == until) {
+      found = true;
+      break;
+    }
+  }
+  if (!found) {
+    std::string known;
+    for (const std::string& name : PipelineStageNames())
+      known += (known.empty() ? "" : ", ") + name;
+    return Status::InvalidArgument("unknown stage '" + until + "'; stages: " + known);
+  }
+  stages.push_back(std::make_unique<PackageStage>());
+  return stages;
+}
+
+}  // namespace reconduit
