@@ -1,0 +1,152 @@
+#include "core/feature/sift.h"
+
+#include "core/util/logging.h"
+
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+
+namespace reconduit {
+
+bool SiftOptions::Check(std::string* error) const {
+  std::ostringstream m;
+  if (max_image_side < 64 || max_image_side > 20000) {
+    m << "max_image_side must be in [64, 20000], got " << max_image_side;
+  } else if (max_features < 16 || max_features > 100000) {
+    m << "max_features must be in [16, 100000], got " << max_features;
+  } else if (!(spread_fraction >= 0.0 && spread_fraction <= 1.0)) {
+    m << "spread_fraction must be in [0, 1], got " << spread_fraction;
+  } else if (grid_cells < 1 || grid_cells > 64) {
+    m << "grid_cells must be in [1, 64], got " << grid_cells;
+  } else if (!(contrast_threshold > 0.0 && contrast_threshold <= 1.0)) {
+    m << "contrast_threshold must be in (0, 1], got " << contrast_threshold;
+  } else if (!(edge_threshold >= 1.0 && edge_threshold <= 100.0)) {
+    m << "edge_threshold must be in [1, 100], got " << edge_threshold;
+  } else if (octave_layers < 1 || octave_layers > 8) {
+    m << "octave_layers must be in [1, 8], got " << octave_layers;
+  } else {
+    return true;
+  }
+  if (error != nullptr) *error = m.str();
+  return false;
+}
+
+std::vector<int> SelectSpreadKeypoints(const std::vector<cv::KeyPoint>& candidates,
+                                       int image_width,
+                                       int image_height,
+                                       int max_features,
+                                       double spread_fraction,
+                                       int grid_cells) {
+  std::vector<int> order(candidates.size());
+  std::iota(order.begin(), order.end(), 0);
+  // Stable on ties (index order) so that results are deterministic.
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return candidates[a].response > candidates[b].response; });
+  if (static_cast<int>(order.size()) <= max_features) return order;
+
+  const int num_strong = static_cast<int>(std::lround((1.0 - spread_fraction) * max_features));
+  std::vector<int> selected(order.begin(), order.begin() + num_strong);
+
+  // Square cells, `grid_cells` along the longer side.
+  const double cell = static_cast<double>(std::max(image_width, image_height)) / grid_cells;
+  const int cols = std::max(1, static_cast<int>(std::ceil(image_width / cell)));
+  const int rows = std::max(1, static_cast<int>(std::ceil(image_height / cell)));
+  std::vector<std::vector<int>> buckets(static_cast<std::size_t>(cols) * rows);
+  for (std::size_t i = num_strong; i < order.size(); ++i) {
+    const cv::KeyPoint& kp = candidates[order[i]];
+    const int cx = std::clamp(static_cast<int>(kp.pt.x / cell), 0, cols - 1);
+    const int cy = std::clamp(static_cast<int>(kp.pt.y / cell), 0, rows - 1);
+    buckets[static_cast<std::size_t>(cy) * cols + cx].push_back(order[i]);  // Strongest first.
+  }
+  std::vector<std::size_t> next(buckets.size(), 0);
+  bool any = true;
+  while (static_cast<int>(selected.size()) < max_features && any) {
+    any = false;
+    for (std::size_t b = 0; b < buckets.size() && static_cast<int>(selected.size()) < max_features;
+         ++b) {
+      if (next[b] < buckets[b].size()) {
+        selected.push_back(buckets[b][next[b]++]);
+        any = true;
+      }
+    }
+  }
+  return selected;
+}
+
+cv::Mat ToRootSiftBytes(const cv::Mat& sift_descriptors) {
+  THROW_CHECK(sift_descriptors.empty() ||
+              (sift_descriptors.cols == 128 && sift_descriptors.type() == CV_32F));
+  cv::Mat bytes(sift_descriptors.rows, 128, CV_8U);
+  for (int r = 0; r < sift_descriptors.rows; ++r) {
+    const float* in = sift_descriptors.ptr<float>(r);
+    std::uint8_t* out = bytes.ptr<std::uint8_t>(r);
+    double l1 = 0.0;
+    for (int c = 0; c < 128; ++c) l1 += std::abs(in[c]);
+    const double inv = l1 > 0.0 ? 1.0 / l1 : 0.0;
+    for (int c = 0; c < 128; ++c) {
+      const double v = std::sqrt(std::abs(in[c]) * inv);
+      out[c] = static_cast<std::uint8_t>(std::lround(std::min(255.0, 512.0 * v)));
+    }
+  }
+  return bytes;
+}
+
+FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options) {
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  THROW_CHECK(!image.empty() && image.depth() == CV_8U) << "an 8-bit image is required";
+
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    gray = image;
+  }
+  const int long_side = std::max(gray.cols, gray.rows);
+  cv::Mat working = gray;
+  if (long_side > options.max_image_side) {
+    const double scale = static_cast<double>(options.max_image_side) / long_side;
+    cv::resize(gray, working, cv::Size(), scale, scale, cv::INTER_AREA);
+  }
+  // The working size is rounded to whole pixels: use the actual per-axis factors.
+  const double sx = static_cast<double>(working.cols) / gray.cols;
+  const double sy = static_cast<double>(working.rows) / gray.rows;
+
+  cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, options.octave_layers, options.contrast_threshold,
+                                            options.edge_threshold, 1.6);
+  std::vector<cv::KeyPoint> candidates;
+  sift->detect(working, candidates);
+  const std::vector<int> chosen =
+      SelectSpreadKeypoints(candidates, working.cols, working.rows, options.max_features,
+                            options.spread_fraction, options.grid_cells);
+  std::vector<cv::KeyPoint> keypoints;
+  keypoints.reserve(chosen.size());
+  for (int index : chosen) keypoints.push_back(candidates[index]);
+  cv::Mat descriptors;
+  sift->compute(working, keypoints, descriptors);  // May drop keypoints near the border.
+
+  FeatureSet features;
+  features.image_width = gray.cols;
+  features.image_height = gray.rows;
+  features.keypoints.reserve(keypoints.size());
+  for (const cv::KeyPoint& kp : keypoints) {
+    Keypoint out;
+    // Pixel centres at integers in both images: x_orig + 0.5 = (x_work + 0.5) / s.
+    out.x = static_cast<float>((kp.pt.x + 0.5) / sx - 0.5);
+    out.y = static_cast<float>((kp.pt.y + 0.5) / sy - 0.5);
+    out.scale = static_cast<float>(kp.size / (0.5 * (sx + sy)));
+    out.orientation = static_cast<float>(kp.angle * M_PI / 180.0);
+    out.response = kp.response;
+    features.keypoints.push_back(out);
+  }
+  features.descriptors = ToRootSiftBytes(descriptors);
+  return features;
+}
+
+}  // namespace reconduit

@@ -1,0 +1,179 @@
+#include "core/feature/sift.h"
+
+#include <gtest/gtest.h>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <filesystem>
+#include <set>
+
+namespace reconduit {
+namespace {
+
+// A deterministic textured picture: blurred noise at several scales plus random shapes, so
+// SIFT has blobs and corners everywhere.
+cv::Mat TexturedImage(int width, int height, std::uint64_t seed) {
+  cv::RNG rng(seed);
+  cv::Mat image(height, width, CV_32F, cv::Scalar(0));
+  for (int octave = 0; octave < 4; ++octave) {
+    const int step = 4 << octave;
+    cv::Mat noise(height / step + 2, width / step + 2, CV_32F);
+    rng.fill(noise, cv::RNG::UNIFORM, -1.0, 1.0);
+    cv::Mat up;
+    cv::resize(noise, up, cv::Size(width, height), 0, 0, cv::INTER_CUBIC);
+    image += up * (40.0 / (octave + 1));
+  }
+  image += 128;
+  cv::Mat out;
+  image.convertTo(out, CV_8U);
+  for (int i = 0; i < 300; ++i) {
+    const cv::Point c(rng.uniform(0, width), rng.uniform(0, height));
+    const int r = rng.uniform(3, 25);
+    const cv::Scalar colour(rng.uniform(0, 256));
+    if (i % 2 == 0) {
+      cv::circle(out, c, r, colour, cv::FILLED, cv::LINE_AA);
+    } else {
+      cv::rectangle(out, cv::Rect(c.x, c.y, r, r * 2 / 3 + 1), colour, cv::FILLED);
+    }
+  }
+  return out;
+}
+
+TEST(SiftOptions, DefaultsAreValid) {
+  std::string error;
+  EXPECT_TRUE(SiftOptions().Check(&error)) << error;
+  SiftOptions bad;
+  bad.spread_fraction = 1.5;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("spread_fraction"), std::string::npos);
+}
+
+TEST(SelectSpreadKeypoints, KeepsAllWhenUnderBudget) {
+  std::vector<cv::KeyPoint> candidates = {cv::KeyPoint(1, 1, 2, 0, 0.1f),
+                                          cv::KeyPoint(5, 5, 2, 0, 0.3f)};
+  const auto chosen = SelectSpreadKeypoints(candidates, 10, 10, 5, 0.3, 4);
+  ASSERT_EQ(chosen.size(), 2u);
+  EXPECT_EQ(chosen[0], 1) << "strongest first";
+}
+
+TEST(SelectSpreadKeypoints, StrongestPlusEveryCellCovered) {
+  // 5000 strong candidates crowd the top-left corner; 2 weak ones sit in every cell.
+  std::vector<cv::KeyPoint> candidates;
+  cv::RNG rng(1);
+  for (int i = 0; i < 5000; ++i) {
+    candidates.emplace_back(rng.uniform(0.f, 100.f), rng.uniform(0.f, 100.f), 2.f, 0.f,
+                            rng.uniform(0.5f, 1.0f));
+  }
+  const int width = 800, height = 600, cells = 8;  // 100 px cells: 8 x 6.
+  for (int cy = 0; cy < 6; ++cy) {
+    for (int cx = 0; cx < 8; ++cx) {
+      for (int k = 0; k < 2; ++k) {
+        candidates.emplace_back(cx * 100.f + 50.f + k, cy * 100.f + 50.f, 2.f, 0.f,
+                                0.01f + 0.001f * k);
+      }
+    }
+  }
+  const auto chosen = SelectSpreadKeypoints(candidates, width, height, 1000, 0.3, cells);
+  ASSERT_EQ(chosen.size(), 1000u);
+  EXPECT_EQ(std::set<int>(chosen.begin(), chosen.end()).size(), 1000u) << "no duplicates";
+  // The first 700 are the strongest candidates overall.
+  float weakest_strong = 1.0f;
+  for (int i = 0; i < 700; ++i)
+    weakest_strong = std::min(weakest_strong, candidates[chosen[i]].response);
+  int stronger_left_out = 0;
+  std::set<int> in(chosen.begin(), chosen.end());
+  for (int i = 0; i < 5000; ++i) {
+    if (!in.count(i) && candidates[i].response > weakest_strong) ++stronger_left_out;
+  }
+  EXPECT_EQ(stronger_left_out, 0);
+  // Every cell got at least one feature.
+  std::set<int> covered;
+  for (int index : chosen) {
+    covered.insert(static_cast<int>(candidates[index].pt.y / 100) * 8 +
+                   static_cast<int>(candidates[index].pt.x / 100));
+  }
+  EXPECT_EQ(covered.size(), 48u);
+}
+
+TEST(ToRootSiftBytes, UnitNormAfterDequantisation) {
+  cv::Mat sift(3, 128, CV_32F);
+  cv::RNG(7).fill(sift, cv::RNG::UNIFORM, 0.0, 100.0);
+  const cv::Mat bytes = ToRootSiftBytes(sift);
+  ASSERT_EQ(bytes.type(), CV_8U);
+  for (int r = 0; r < 3; ++r) {
+    double norm2 = 0.0;
+    for (int c = 0; c < 128; ++c) norm2 += std::pow(bytes.at<std::uint8_t>(r, c) / 512.0, 2);
+    EXPECT_NEAR(std::sqrt(norm2), 1.0, 0.01);
+  }
+}
+
+// Detects in an image and in a copy warped by a known homography, matches with the ratio
+// test, and checks that the matches agree with the homography: this pins the coordinate
+// convention (including the scaling back from the working resolution) and the descriptors.
+void CheckRepeatableUnderHomography(int max_image_side, double tolerance_px) {
+  const cv::Mat image = TexturedImage(1200, 900, 42);
+  cv::Mat h = cv::getRotationMatrix2D(cv::Point2f(600, 450), 20.0, 0.8);
+  h.push_back(cv::Mat((cv::Mat_<double>(1, 3) << 0, 0, 1)));
+  cv::Mat warped;
+  cv::warpPerspective(image, warped, h, image.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+
+  SiftOptions options;
+  options.max_image_side = max_image_side;
+  options.max_features = 4000;
+  const FeatureSet f1 = ExtractSiftFeatures(image, options);
+  const FeatureSet f2 = ExtractSiftFeatures(warped, options);
+  ASSERT_GT(f1.size(), 1000u);
+  ASSERT_EQ(f1.descriptors.rows, static_cast<int>(f1.size()));
+  EXPECT_EQ(f1.image_width, 1200);
+  for (const Keypoint& kp : f1.keypoints) {
+    ASSERT_GE(kp.x, -0.5f);
+    ASSERT_LT(kp.x, 1199.5f);
+  }
+
+  cv::Mat d1, d2;
+  f1.descriptors.convertTo(d1, CV_32F);
+  f2.descriptors.convertTo(d2, CV_32F);
+  std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher(cv::NORM_L2).knnMatch(d1, d2, knn, 2);
+  int matches = 0, correct = 0;
+  for (const auto& m : knn) {
+    if (m.size() < 2 || m[0].distance > 0.8f * m[1].distance) continue;
+    ++matches;
+    const Keypoint& a = f1.keypoints[m[0].queryIdx];
+    const Keypoint& b = f2.keypoints[m[0].trainIdx];
+    const cv::Vec3d p = cv::Matx33d(h) * cv::Vec3d(a.x, a.y, 1.0);
+    if (std::hypot(p[0] / p[2] - b.x, p[1] / p[2] - b.y) < tolerance_px) ++correct;
+  }
+  EXPECT_GT(matches, 300);
+  EXPECT_GT(correct, 0.9 * matches) << correct << " of " << matches;
+}
+
+TEST(ExtractSiftFeatures, RepeatableUnderAKnownHomography) {
+  CheckRepeatableUnderHomography(/*max_image_side=*/3200, /*tolerance_px=*/1.5);
+}
+
+TEST(ExtractSiftFeatures, DownscaledDetectionReportsOriginalPixels) {
+  CheckRepeatableUnderHomography(/*max_image_side=*/600, /*tolerance_px=*/3.0);
+}
+
+TEST(ExtractSiftFeatures, Deterministic) {
+  const cv::Mat image = TexturedImage(400, 300, 3);
+  const FeatureSet a = ExtractSiftFeatures(image, SiftOptions());
+  const FeatureSet b = ExtractSiftFeatures(image, SiftOptions());
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_L1), 0.0);
+}
+
+TEST(ExtractSiftFeatures, FlatImageHasNoFeatures) {
+  const FeatureSet f = ExtractSiftFeatures(cv::Mat(200, 200, CV_8U, cv::Scalar(90)), SiftOptions());
+  EXPECT_EQ(f.size(), 0u);
+  EXPECT_EQ(f.descriptors.rows, 0);
+}
+
+TEST(ExtractSiftFeatures, RejectsEmptyImage) {
+  EXPECT_THROW(ExtractSiftFeatures(cv::Mat(), SiftOptions()), CheckError);
+}
+
+}  // namespace
+}  // namespace reconduit
