@@ -1,6 +1,9 @@
 # Helpers modelled on COLMAP's COLMAP_ADD_LIBRARY / COLMAP_ADD_TEST: one library per core/
 # folder, tests registered one by one beside their code, named "<folder>/<test>" in ctest.
 
+# The repository root: include paths are relative to it ("core/util/status.h").
+get_filename_component(RECONDUIT_ROOT "${CMAKE_CURRENT_LIST_DIR}/.." ABSOLUTE)
+
 # Compile options every Reconduit target gets.
 function(reconduit_set_target_options target)
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wno-missing-field-initializers)
@@ -26,12 +29,12 @@ function(reconduit_add_library)
   set(target reconduit_${ARG_NAME})
   if(ARG_SRCS)
     add_library(${target} STATIC ${ARG_SRCS})
-    target_include_directories(${target} PUBLIC ${PROJECT_SOURCE_DIR})
+    target_include_directories(${target} PUBLIC ${RECONDUIT_ROOT})
     target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_LINK_LIBS} PRIVATE ${ARG_PRIVATE_LINK_LIBS})
     reconduit_set_target_options(${target})
   else()
     add_library(${target} INTERFACE)
-    target_include_directories(${target} INTERFACE ${PROJECT_SOURCE_DIR})
+    target_include_directories(${target} INTERFACE ${RECONDUIT_ROOT})
     target_link_libraries(${target} INTERFACE ${ARG_PUBLIC_LINK_LIBS})
   endif()
 endfunction()
@@ -58,6 +61,6 @@ function(reconduit_add_test)
   reconduit_set_target_options(${target})
   add_test(NAME ${ARG_FOLDER}/${ARG_NAME} COMMAND ${target})
   set_tests_properties(${ARG_FOLDER}/${ARG_NAME} PROPERTIES
-    LABELS "${ARG_LABELS}" WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
-    ENVIRONMENT "RECONDUIT_SOURCE_DIR=${PROJECT_SOURCE_DIR}")
+    LABELS "${ARG_LABELS}" WORKING_DIRECTORY ${RECONDUIT_ROOT}
+    ENVIRONMENT "RECONDUIT_SOURCE_DIR=${RECONDUIT_ROOT}")
 endfunction()

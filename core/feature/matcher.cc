@@ -1,0 +1,114 @@
+#include "core/feature/matcher.h"
+
+#include "core/util/logging.h"
+
+#include <algorithm>
+#include <cblas.h>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <sstream>
+
+extern "C" void openblas_set_num_threads(int num_threads);
+
+namespace reconduit {
+namespace {
+
+// Rows per block: 1024 x n floats is 32 MiB at n = 8192.
+constexpr int kBlockRows = 1024;
+
+struct Best2 {
+  float d1 = std::numeric_limits<float>::infinity();  // Squared distances.
+  float d2 = std::numeric_limits<float>::infinity();
+  int index = -1;
+  void Offer(float d, int i) {
+    if (d < d1) {
+      d2 = d1;
+      d1 = d;
+      index = i;
+    } else if (d < d2) {
+      d2 = d;
+    }
+  }
+};
+
+void UseSingleThreadedBlas() {
+  static std::once_flag once;
+  std::call_once(once, [] { openblas_set_num_threads(1); });
+}
+
+}  // namespace
+
+bool MatchingOptions::Check(std::string* error) const {
+  std::ostringstream m;
+  if (!(max_ratio > 0.0 && max_ratio <= 1.0)) {
+    m << "max_ratio must be in (0, 1], got " << max_ratio;
+  } else if (!(max_distance > 0.0 && max_distance <= 2.0)) {
+    m << "max_distance must be in (0, 2], got " << max_distance;
+  } else {
+    return true;
+  }
+  if (error != nullptr) *error = m.str();
+  return false;
+}
+
+DescriptorMatrix ToDescriptorMatrix(const FeatureSet& features) {
+  THROW_CHECK(features.descriptors.empty() || features.descriptors.cols == 128);
+  DescriptorMatrix matrix(features.descriptors.rows, 128);
+  for (int r = 0; r < features.descriptors.rows; ++r) {
+    const std::uint8_t* row = features.descriptors.ptr<std::uint8_t>(r);
+    for (int c = 0; c < 128; ++c) matrix(r, c) = static_cast<float>(row[c]);
+    const float norm = matrix.row(r).norm();
+    if (norm > 0.0f) matrix.row(r) /= norm;
+  }
+  return matrix;
+}
+
+std::vector<FeatureMatch> MatchDescriptors(const DescriptorMatrix& descriptors1,
+                                           const DescriptorMatrix& descriptors2,
+                                           const MatchingOptions& options) {
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  const int n1 = static_cast<int>(descriptors1.rows());
+  const int n2 = static_cast<int>(descriptors2.rows());
+  std::vector<FeatureMatch> matches;
+  if (n1 == 0 || n2 == 0) return matches;
+  UseSingleThreadedBlas();
+
+  const Eigen::VectorXf norms2 = descriptors2.rowwise().squaredNorm();
+  std::vector<Best2> best_for_1(n1);
+  std::vector<Best2> best_for_2(n2);
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> dots(
+      std::min(kBlockRows, n1), n2);
+  for (int start = 0; start < n1; start += kBlockRows) {
+    const int rows = std::min(kBlockRows, n1 - start);
+    // dots = descriptors1[start:start+rows] * descriptors2ᵀ
+    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, rows, n2, 128, 1.0f,
+                descriptors1.data() + static_cast<std::ptrdiff_t>(start) * 128, 128,
+                descriptors2.data(), 128, 0.0f, dots.data(), n2);
+    for (int r = 0; r < rows; ++r) {
+      const int i = start + r;
+      const float norm1 = descriptors1.row(i).squaredNorm();
+      const float* row = dots.data() + static_cast<std::ptrdiff_t>(r) * n2;
+      Best2& best1 = best_for_1[i];
+      for (int j = 0; j < n2; ++j) {
+        const float d = std::max(0.0f, norm1 + norms2[j] - 2.0f * row[j]);
+        best1.Offer(d, j);
+        best_for_2[j].Offer(d, i);
+      }
+    }
+  }
+
+  const float max_distance2 = static_cast<float>(options.max_distance * options.max_distance);
+  const float max_ratio2 = static_cast<float>(options.max_ratio * options.max_ratio);
+  for (int i = 0; i < n1; ++i) {
+    const Best2& b = best_for_1[i];
+    if (b.index < 0 || b.d1 > max_distance2) continue;
+    if (b.d1 >= max_ratio2 * b.d2) continue;  // Ratio test on squared distances.
+    if (options.cross_check && best_for_2[b.index].index != i) continue;
+    matches.push_back({i, b.index});
+  }
+  return matches;
+}
+
+}  // namespace reconduit
