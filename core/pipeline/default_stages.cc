@@ -1,6 +1,9 @@
 #include "core/pipeline/default_stages.h"
 
+#include "core/pipeline/stages/features_stage.h"
+#include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/package_stage.h"
+#include "core/pipeline/stages/pairs_stage.h"
 
 #include <functional>
 #include <utility>
@@ -11,7 +14,13 @@ namespace {
 using StageFactory = std::function<std::unique_ptr<Stage>()>;
 
 // The stages before packaging, in order. A stage is listed here when it exists.
-std::vector<std::pair<std::string, StageFactory>> WorkStages() { return {}; }
+std::vector<std::pair<std::string, StageFactory>> WorkStages() {
+  return {
+      {"ingest", [] { return std::make_unique<IngestStage>(); }},
+      {"features", [] { return std::make_unique<FeaturesStage>(); }},
+      {"pairs", [] { return std::make_unique<PairsStage>(); }},
+  };
+}
 
 }  // namespace
 

@@ -58,6 +58,13 @@ std::vector<OptionSpec> MakeSpecs() {
   specs.push_back(BooleanOption(
       "use_exif", &PipelineOptions::use_exif,
       "Start from the EXIF focal length when a photo has one. Self-calibration still checks it."));
+  specs.push_back(IntegerOption(
+      "max_image_side", &PipelineOptions::max_image_side, 256, 20000,
+      "Features are found on a copy of each photo whose longer side is at most this many "
+      "pixels; results are always in the original photo's pixels."));
+  specs.push_back(IntegerOption("max_features", &PipelineOptions::max_features, 256, 65536,
+                                "At most this many features per photo, spread over the whole "
+                                "photo."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;

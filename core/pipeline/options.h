@@ -31,6 +31,11 @@ struct PipelineOptions {
   std::int64_t max_image_pixels = 100'000'000;
   // Use the EXIF focal length, when present, as the initial focal length. [bool]
   bool use_exif = true;
+  // Features are detected on a copy of each photo no larger than this (long side, pixels).
+  // [256, 20000]
+  int max_image_side = 3200;
+  // At most this many features per photo. [256, 65536]
+  int max_features = 8192;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 

@@ -1,0 +1,82 @@
+#include "core/pipeline/stages/features_stage.h"
+
+#include "core/feature/sift.h"
+#include "core/image/image_reader.h"
+#include "core/pipeline/stages/ingest_stage.h"
+#include "core/util/logging.h"
+#include "core/util/parallel.h"
+
+#include <opencv2/core.hpp>
+
+#include <atomic>
+#include <cstdio>
+
+namespace reconduit {
+
+std::filesystem::path FeaturesPath(const Workspace& workspace, int index) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%05d.feat", index);
+  return workspace.StageDir("features") / name;
+}
+
+Result<FeatureSet> ReadImageFeatures(const Workspace& workspace, int index) {
+  return ReadFeatures(FeaturesPath(workspace, index));
+}
+
+StageResult FeaturesStage::Run(StageContext& context) const {
+  auto images = ReadIngestedImages(context.workspace);
+  if (!images.ok()) return StageResult::Failed(images.status().message());
+  std::vector<const IngestedImage*> accepted;
+  for (const IngestedImage& image : *images) {
+    if (image.accepted) accepted.push_back(&image);
+  }
+
+  SiftOptions sift;
+  sift.max_image_side = context.options.max_image_side;
+  sift.max_features = context.options.max_features;
+  ImageReaderOptions reader;
+  reader.min_side = context.options.min_image_side;
+  reader.max_pixels = context.options.max_image_pixels;
+  reader.read_exif = false;
+
+  // OpenCV's own threads would compete with ours: one OpenCV thread per photo in flight.
+  const int previous_cv_threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  std::atomic<std::size_t> total{0};
+  std::atomic<std::size_t> fewest{SIZE_MAX};
+  context.progress.Restart(accepted.size(), "photos");
+  try {
+    ParallelFor(
+        0, accepted.size(),
+        [&](std::size_t k) {
+          context.cancel.ThrowIfCancelled();
+          const IngestedImage& image = *accepted[k];
+          auto pixels = ReadImage(image.path, reader);
+          THROW_CHECK(pixels.ok()) << image.name << ": " << pixels.status().message();
+          const FeatureSet features = ExtractSiftFeatures(*pixels, sift);
+          const Status written =
+              WriteFeatures(FeaturesPath(context.workspace, image.index), features);
+          THROW_CHECK(written.ok()) << written.message();
+          total += features.size();
+          std::size_t current = fewest.load();
+          while (features.size() < current &&
+                 !fewest.compare_exchange_weak(current, features.size())) {
+          }
+          LOG_DEBUG << "features: " << image.name << ": " << features.size();
+          context.progress.Advance();
+        },
+        context.options.num_threads);
+  } catch (...) {
+    cv::setNumThreads(previous_cv_threads);
+    throw;
+  }
+  cv::setNumThreads(previous_cv_threads);
+  const double mean = accepted.empty() ? 0.0 : static_cast<double>(total) / accepted.size();
+  LOG_INFO << "features: " << total.load() << " in " << accepted.size() << " photos (mean "
+           << static_cast<int>(mean) << ", fewest " << (accepted.empty() ? 0 : fewest.load())
+           << ")";
+  return StageResult::Success(
+      {{"photos", accepted.size()}, {"features", total.load()}, {"mean_per_photo", mean}});
+}
+
+}  // namespace reconduit

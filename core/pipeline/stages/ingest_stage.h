@@ -1,0 +1,50 @@
+// Stage 1: inspect every photo (format, size, EXIF focal) and decide which ones are usable.
+//
+// Writes work/ingest/images.json: one record per input photo, in input order, with the reason
+// for each refusal. Later stages read it with ReadIngestedImages. At least two usable photos
+// are needed; otherwise the stage fails with every refusal reason in its message.
+#ifndef RECONDUIT_CORE_PIPELINE_STAGES_INGEST_STAGE_H_
+#define RECONDUIT_CORE_PIPELINE_STAGES_INGEST_STAGE_H_
+
+#include "core/pipeline/stage.h"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace reconduit {
+
+struct IngestedImage {
+  int index = -1;              // Position in the workspace's image list.
+  std::string name;            // Display name.
+  std::filesystem::path path;  // Where the bytes are.
+  bool accepted = false;
+  std::string reason;  // Why it was refused (empty when accepted).
+  int width = 0;       // Oriented size in pixels.
+  int height = 0;
+  std::optional<double> exif_focal_px;  // EXIF focal prior in pixels of width x height.
+  std::string focal_source;             // How exif_focal_px was derived, or "".
+  std::string camera_make;
+  std::string camera_model;
+  // Photos with equal keys share intrinsics: EXIF make, model and size, or the size alone
+  // for photos without EXIF.
+  std::string camera_key;
+
+  nlohmann::json ToJson() const;
+  static IngestedImage FromJson(const nlohmann::json& json);
+};
+
+class IngestStage : public Stage {
+ public:
+  std::string_view Name() const override { return "ingest"; }
+  std::string_view Title() const override { return "Reading photos"; }
+  double Weight() const override { return 0.5; }
+  StageResult Run(StageContext& context) const override;
+};
+
+// The ingest stage's records (all photos, accepted or not), from work/ingest/images.json.
+Result<std::vector<IngestedImage>> ReadIngestedImages(const Workspace& workspace);
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_PIPELINE_STAGES_INGEST_STAGE_H_
