@@ -65,18 +65,21 @@ std::optional<Eigen::Vector2d> Camera::Undistort(const Eigen::Vector2d& distorte
   if (std::isfinite(r_limit) && rd >= DistortRadius(r_limit, k1, k2)) return std::nullopt;
 
   // Newton on f(r) = r_d(r) - rd, from r = rd, kept inside [0, r_limit) where f is increasing
-  // so the root is unique; bisection steps guard against overshooting.
+  // so the root is unique; bisection steps guard against overshooting. The bracket [lo, hi]
+  // is closed: a converged Newton step lands on r itself, which is then one of its ends, and
+  // must end the loop rather than trigger a bisection step away from the root.
   double lo = 0.0, hi = std::isfinite(r_limit) ? r_limit : std::numeric_limits<double>::max();
   double r = std::isfinite(r_limit) ? std::min(rd, 0.5 * r_limit) : rd;
   for (int iteration = 0; iteration < 100; ++iteration) {
     const double f = DistortRadius(r, k1, k2) - rd;
+    if (f == 0.0) break;
     if (f > 0.0)
       hi = std::min(hi, r);
     else
       lo = std::max(lo, r);
     const double df = DistortRadiusDerivative(r, k1, k2);
     double next = r - f / df;
-    if (!(next > lo && next < hi))
+    if (!(next >= lo && next <= hi))
       next = std::isfinite(hi) && hi < 1e300 ? 0.5 * (lo + hi) : 2.0 * r;
     if (std::abs(next - r) <= 1e-15 * std::max(1.0, r)) {
       r = next;
