@@ -1,0 +1,116 @@
+#include "server/storage/sqlite_util.h"
+
+#include "server/storage/storage_test_util.h"
+
+#include <gtest/gtest.h>
+
+namespace reconduit {
+namespace {
+
+using testing_util::TempDir;
+
+TEST(Statement, BindsAndReadsEveryType) {
+  TempDir dir;
+  SqliteConnection db = SqliteConnection::Open(dir.File("t.db"));
+  db.Exec("CREATE TABLE t (i INTEGER, d REAL, s TEXT, n TEXT)", "create");
+  Statement insert(db.get(), "INSERT INTO t VALUES (?1, ?2, ?3, ?4)");
+  insert.Bind(1, std::int64_t{1} << 40).Bind(2, 2.5).Bind(3, std::string_view("a\0b", 3));
+  insert.Bind(4, std::optional<std::string>()).Run();
+
+  Statement select(db.get(), "SELECT i, d, s, n FROM t");
+  ASSERT_TRUE(select.Step());
+  EXPECT_EQ(select.Int64(0), std::int64_t{1} << 40);
+  EXPECT_DOUBLE_EQ(select.Double(1), 2.5);
+  EXPECT_EQ(select.Text(2), std::string("a\0b", 3));  // Embedded NUL survives.
+  EXPECT_TRUE(select.IsNull(3));
+  EXPECT_EQ(select.OptionalInt64(3), std::nullopt);
+  EXPECT_FALSE(select.Step());
+}
+
+TEST(Statement, BoundValuesAreNeverSql) {
+  TempDir dir;
+  SqliteConnection db = SqliteConnection::Open(dir.File("t.db"));
+  db.Exec("CREATE TABLE t (s TEXT)", "create");
+  const std::string hostile = "x'); DROP TABLE t; --";
+  Statement(db.get(), "INSERT INTO t VALUES (?1)").Bind(1, hostile).Run();
+  Statement select(db.get(), "SELECT s FROM t");
+  ASSERT_TRUE(select.Step());
+  EXPECT_EQ(select.Text(0), hostile);
+}
+
+TEST(Statement, BadSqlThrowsWithTheStatementInTheMessage) {
+  TempDir dir;
+  SqliteConnection db = SqliteConnection::Open(dir.File("t.db"));
+  try {
+    Statement bad(db.get(), "SELEC nonsense");
+    FAIL() << "prepare should have thrown";
+  } catch (const SqliteError& e) {
+    EXPECT_EQ(e.status().code(), StatusCode::kInternal);
+    EXPECT_NE(e.status().message().find("SELEC nonsense"), std::string::npos);
+  }
+}
+
+TEST(Statement, ConstraintViolationIsInvalidArgument) {
+  TempDir dir;
+  SqliteConnection db = SqliteConnection::Open(dir.File("t.db"));
+  db.Exec("CREATE TABLE t (x INTEGER CHECK (x > 0))", "create");
+  Statement insert(db.get(), "INSERT INTO t VALUES (?1)");
+  insert.Bind(1, -1);
+  try {
+    insert.Run();
+    FAIL() << "insert should have thrown";
+  } catch (const SqliteError& e) {
+    EXPECT_EQ(e.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(e.status().message().find("CHECK constraint failed"), std::string::npos)
+        << e.status();
+  }
+}
+
+TEST(Transaction, RollsBackUnlessCommitted) {
+  TempDir dir;
+  SqliteConnection db = SqliteConnection::Open(dir.File("t.db"));
+  db.Exec("CREATE TABLE t (x INTEGER)", "create");
+  {
+    Transaction transaction(db, Transaction::Mode::kImmediate);
+    db.Exec("INSERT INTO t VALUES (1)", "insert");
+  }
+  EXPECT_TRUE(db.InAutocommit());
+  EXPECT_EQ(db.QueryInt64("SELECT count(*) FROM t", "count"), 0);
+  {
+    Transaction transaction(db, Transaction::Mode::kImmediate);
+    db.Exec("INSERT INTO t VALUES (1)", "insert");
+    transaction.Commit();
+  }
+  EXPECT_EQ(db.QueryInt64("SELECT count(*) FROM t", "count"), 1);
+}
+
+TEST(Transaction, SecondWriterWithoutBusyTimeoutGetsResourceExhausted) {
+  TempDir dir;
+  SqliteConnection first = SqliteConnection::Open(dir.File("t.db"));
+  SqliteConnection second = SqliteConnection::Open(dir.File("t.db"));
+  first.Exec("PRAGMA journal_mode = WAL", "wal");
+  first.Exec("CREATE TABLE t (x INTEGER)", "create");
+  Transaction holder(first, Transaction::Mode::kImmediate);
+  try {
+    Transaction blocked(second, Transaction::Mode::kImmediate);
+    FAIL() << "BEGIN IMMEDIATE should have failed while another connection writes";
+  } catch (const SqliteError& e) {
+    EXPECT_EQ(e.status().code(), StatusCode::kResourceExhausted) << e.status();
+  }
+  EXPECT_TRUE(second.InAutocommit());
+}
+
+TEST(SqliteStatus, MapsCodes) {
+  EXPECT_EQ(SqliteStatus(SQLITE_BUSY, nullptr, "x").code(), StatusCode::kResourceExhausted);
+  EXPECT_EQ(SqliteStatus(SQLITE_BUSY_SNAPSHOT, nullptr, "x").code(),
+            StatusCode::kResourceExhausted);
+  EXPECT_EQ(SqliteStatus(SQLITE_CONSTRAINT_UNIQUE, nullptr, "x").code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(SqliteStatus(SQLITE_NOTADB, nullptr, "x").code(), StatusCode::kInternal);
+  EXPECT_EQ(SqliteStatus(SQLITE_IOERR, nullptr, "ctx").message().substr(0, 5), "ctx: ");
+  EXPECT_TRUE(IsSqliteBusy(SQLITE_LOCKED_SHAREDCACHE));
+  EXPECT_FALSE(IsSqliteBusy(SQLITE_CORRUPT));
+}
+
+}  // namespace
+}  // namespace reconduit
