@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 namespace reconduit {
@@ -30,6 +32,9 @@ TEST(ParallelFor, RethrowsFirstExceptionAndStopsStartingItems) {
                    [&](std::size_t i) {
                      ++started;
                      if (i == 10) throw std::runtime_error("item 10 failed");
+                     // Items take a while, so that even on a loaded machine the other
+                     // thread cannot run through all of them before the failure is seen.
+                     std::this_thread::sleep_for(std::chrono::microseconds(100));
                    },
                    2),
                std::runtime_error);

@@ -1,0 +1,769 @@
+// The only translation unit of reconduit_http that includes Beast's I/O machinery: the listener,
+// the session loop, response serialisation and shutdown. Laid out top-down like the Beast
+// examples: helpers, response writing, request handling, session, listener and shutdown.
+#include "server/http/server.h"
+
+#include "core/util/logging.h"
+#include "server/http/url.h"
+
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/redirect_error.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/asio/use_awaitable.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+
+#include <array>
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <exception>
+#include <limits>
+#include <mutex>
+#include <random>
+#include <thread>
+#include <unordered_set>
+#include <variant>
+
+namespace reconduit::server {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+
+namespace {
+
+// Size of the buffer a request body is read into; also the largest piece a BodySink receives.
+constexpr std::size_t kBodyChunkBytes = 64 * 1024;
+// After an early error response on a connection whose request body was not read, the server
+// reads and discards this much for at most kLingerTime before closing, so the client sees the
+// response instead of a connection reset.
+constexpr std::uint64_t kLingerMaxBytes = 4 * 1024 * 1024;
+constexpr std::chrono::milliseconds kLingerTime{2000};
+constexpr std::chrono::milliseconds kRejectTimeout{5000};
+
+auto Awaitable(beast::error_code& ec) { return net::redirect_error(net::use_awaitable, ec); }
+
+std::string ToString(beast::string_view s) { return std::string(s.data(), s.size()); }
+
+// 16 hex digits from a per-thread generator seeded by the system.
+std::string NewRequestId() {
+  thread_local std::mt19937_64 generator{std::random_device{}()};
+  char buffer[17];
+  std::snprintf(buffer, sizeof(buffer), "%016llx",
+                static_cast<unsigned long long>(generator()));  // NOLINT(runtime/int)
+  return buffer;
+}
+
+// A client-supplied X-Request-Id is echoed only when it is short and harmless in a log line.
+bool IsAcceptableRequestId(std::string_view id) {
+  if (id.empty() || id.size() > 64) return false;
+  for (const char c : id) {
+    const bool ok = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                    c == '-' || c == '_' || c == '.';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+bool IsParseError(const beast::error_code& ec) {
+  return ec.category() == http::make_error_code(http::error::bad_target).category() &&
+         ec != http::error::end_of_stream && ec != http::error::partial_message;
+}
+
+// Checks `Authorization: Bearer <token>`; the scheme is case-insensitive (RFC 9110 11.1).
+bool HasBearerToken(const RequestContext& context, const std::string& token) {
+  const std::optional<std::string_view> header = context.Header("Authorization");
+  if (!header) return false;
+  constexpr std::string_view kScheme = "bearer ";
+  if (header->size() < kScheme.size() ||
+      !EqualsIgnoreCase(header->substr(0, kScheme.size()), kScheme)) {
+    return false;
+  }
+  std::string_view presented = header->substr(kScheme.size());
+  while (!presented.empty() && presented.front() == ' ') presented.remove_prefix(1);
+  while (!presented.empty() && presented.back() == ' ') presented.remove_suffix(1);
+  return ConstantTimeEquals(presented, token);
+}
+
+}  // namespace
+
+bool HttpServerOptions::Check(std::string* error) const {
+  auto fail = [error](const std::string& message) {
+    if (error != nullptr) *error = message;
+    return false;
+  };
+  if (host.empty()) return fail("host must not be empty");
+  if (port < 0 || port > 65535) return fail("port must be in [0, 65535]");
+  if (num_threads < 1 || num_threads > 64) return fail("num_threads must be in [1, 64]");
+  if (max_connections < 1) return fail("max_connections must be >= 1");
+  if (max_header_bytes < 1024) return fail("max_header_bytes must be >= 1024");
+  if (max_body_bytes < 1) return fail("max_body_bytes must be >= 1");
+  if (max_upload_bytes < 1) return fail("max_upload_bytes must be >= 1");
+  if (header_timeout.count() <= 0 || body_timeout.count() <= 0 || write_timeout.count() <= 0) {
+    return fail("timeouts must be positive");
+  }
+  if (shutdown_grace.count() < 0) return fail("shutdown_grace must be >= 0");
+  if (retry_after_seconds < 0) return fail("retry_after_seconds must be >= 0");
+  if (bearer_token.find_first_of(" \t\r\n") != std::string::npos) {
+    return fail("bearer_token must not contain white space");
+  }
+  return true;
+}
+
+//------------------------------------------------------------------------------------------------
+
+// One accepted connection. The session coroutine and the shutdown code share it; `idle` is only
+// touched on the connection's strand.
+struct Connection {
+  explicit Connection(tcp::socket socket) : stream(std::move(socket)) {}
+  beast::tcp_stream stream;
+  // True while waiting for the next request header (nothing in flight).
+  bool idle = false;
+};
+
+class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
+ public:
+  Impl(HttpServerOptions options, Router router)
+      : options_(std::move(options)),
+        router_(std::move(router)),
+        control_(net::make_strand(ioc_)),
+        acceptor_(control_),
+        signals_(control_) {}
+
+  Status Listen();
+  Status Run();
+  void Shutdown();
+  int port() const { return bound_port_; }
+  int ConnectionCount() const {
+    std::lock_guard<std::mutex> lock(connections_mutex_);
+    return static_cast<int>(connections_.size());
+  }
+
+ private:
+  // The handler chosen for a request that passed Admit().
+  struct Dispatch {
+    const Handler* handler = nullptr;
+    const StreamingHandler* streaming_handler = nullptr;
+    std::uint64_t body_limit = 0;
+  };
+
+  // What HandleRequest decided about the connection.
+  struct Outcome {
+    bool keep_alive = false;
+    // The request body was not (completely) read: linger before closing.
+    bool body_unread = false;
+  };
+
+  net::awaitable<void> AcceptLoop();
+  net::awaitable<void> WaitForShutdown();
+  net::awaitable<void> Session(std::shared_ptr<Connection> connection);
+  net::awaitable<void> RejectBusy(tcp::socket socket);
+  // Everything decided from the header alone: target, token, size limits, route. Returns the
+  // refusal to send, or nullopt with `dispatch` filled in.
+  std::optional<Response> Admit(RequestContext& context, Dispatch* dispatch);
+  net::awaitable<Outcome> HandleRequest(Connection& connection,
+                                        http::request_parser<http::buffer_body>& parser,
+                                        beast::flat_buffer& buffer,
+                                        std::vector<char>& chunk,
+                                        const std::string& remote_address);
+  // Writes `response` and logs the request; returns false when the write failed.
+  net::awaitable<bool> WriteResponse(beast::tcp_stream& stream,
+                                     const RequestContext& context,
+                                     Response& response,
+                                     bool keep_alive,
+                                     std::chrono::steady_clock::time_point start);
+  template <class Message>
+  net::awaitable<bool> WriteMessage(beast::tcp_stream& stream, Message& message);
+  net::awaitable<void> Linger(beast::tcp_stream& stream);
+
+  void CloseConnections(bool only_idle);
+  void RunLoop();
+
+  HttpServerOptions options_;
+  Router router_;
+  net::io_context ioc_;
+  // Serialises the acceptor, the signal set and the shutdown sequence.
+  net::strand<net::io_context::executor_type> control_;
+  tcp::acceptor acceptor_;
+  net::signal_set signals_;
+  int bound_port_ = 0;
+  std::string bound_address_;
+
+  std::atomic<bool> stopping_{false};
+  std::atomic<bool> shutdown_requested_{false};
+  mutable std::mutex connections_mutex_;
+  std::unordered_set<std::shared_ptr<Connection>> connections_;
+};
+
+//------------------------------------------------------------------------------------------------
+// Response writing.
+
+template <class Message>
+net::awaitable<bool> HttpServer::Impl::WriteMessage(beast::tcp_stream& stream, Message& message) {
+  // Piecewise with a timeout per piece, so a large download to a slow but live client is not cut
+  // off while a client that stops reading is.
+  http::serializer<false, typename Message::body_type, typename Message::fields_type> serializer(
+      message);
+  beast::error_code ec;
+  while (!serializer.is_done()) {
+    stream.expires_after(options_.write_timeout);
+    co_await http::async_write_some(stream, serializer, Awaitable(ec));
+    if (ec) {
+      LOG_DEBUG << "write failed: " << ec.message();
+      co_return false;
+    }
+  }
+  co_return true;
+}
+
+net::awaitable<bool> HttpServer::Impl::WriteResponse(beast::tcp_stream& stream,
+                                                     const RequestContext& context,
+                                                     Response& response,
+                                                     bool keep_alive,
+                                                     std::chrono::steady_clock::time_point start) {
+  const bool head = context.method == HttpVerb::head;
+
+  // Open a file body first: a file that vanished becomes a 404 JSON error.
+  http::file_body::value_type file;
+  if (response.file()) {
+    beast::error_code ec;
+    file.open(response.file()->c_str(), beast::file_mode::scan, ec);
+    if (ec) {
+      LOG_WARNING << "cannot open " << *response.file() << ": " << ec.message();
+      response = ErrorResponse(HttpStatus::not_found, "file not found");
+    }
+  }
+  const bool is_file = response.file().has_value();
+  const std::uint64_t body_bytes = is_file ? file.size() : response.body().size();
+
+  auto fill_headers = [&](auto& message) {
+    for (const auto& [name, value] : response.headers()) message.set(name, value);
+    message.set(http::field::server, options_.server_name);
+    if (response.FindHeader("Content-Type") == nullptr) {
+      message.set(http::field::content_type, std::string(kTextContentType));
+    }
+    message.set("X-Request-Id", context.request_id);
+    message.keep_alive(keep_alive);
+  };
+
+  bool written = false;
+  if (head) {
+    http::response<http::empty_body> message{response.status(), 11};
+    fill_headers(message);
+    message.content_length(body_bytes);
+    written = co_await WriteMessage(stream, message);
+  } else if (is_file) {
+    http::response<http::file_body> message{response.status(), 11};
+    fill_headers(message);
+    message.body() = std::move(file);
+    message.prepare_payload();
+    written = co_await WriteMessage(stream, message);
+  } else {
+    http::response<http::string_body> message{response.status(), 11};
+    fill_headers(message);
+    message.body() = response.body();
+    message.prepare_payload();
+    written = co_await WriteMessage(stream, message);
+  }
+
+  const auto elapsed =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start);
+  char elapsed_text[32];
+  std::snprintf(elapsed_text, sizeof(elapsed_text), "%.1f", elapsed.count());
+  LOG_INFO << "http " << (context.method_string.empty() ? "-" : context.method_string) << " "
+           << (context.path.empty() ? "-" : context.path) << " "
+           << static_cast<unsigned>(response.status()) << " " << (head ? 0 : body_bytes) << "B "
+           << elapsed_text << "ms " << context.remote_address << " id=" << context.request_id
+           << (written ? "" : " (write failed)");
+  co_return written;
+}
+
+net::awaitable<void> HttpServer::Impl::Linger(beast::tcp_stream& stream) {
+  beast::error_code ec;
+  stream.socket().shutdown(tcp::socket::shutdown_send, ec);
+  if (ec) co_return;
+  std::array<char, 16 * 1024> discard;
+  std::uint64_t total = 0;
+  stream.expires_after(kLingerTime);
+  while (total < kLingerMaxBytes) {
+    const std::size_t n = co_await stream.async_read_some(net::buffer(discard), Awaitable(ec));
+    if (ec) break;
+    total += n;
+  }
+}
+
+//------------------------------------------------------------------------------------------------
+// Request handling.
+
+namespace {
+
+// The catch-all at the request boundary: runs a handler step and turns an exception into
+// nullopt plus a log line; the caller answers with a 500 JSON error.
+template <class Step>
+auto Guarded(const RequestContext& context, Step&& step) -> std::optional<decltype(step())> {
+  try {
+    return step();
+  } catch (const std::exception& e) {
+    LOG_ERROR << "uncaught exception in handler for " << context.method_string << " "
+              << context.path << " id=" << context.request_id << ": " << e.what();
+  } catch (...) {
+    LOG_ERROR << "uncaught non-standard exception in handler for " << context.method_string << " "
+              << context.path << " id=" << context.request_id;
+  }
+  return std::nullopt;
+}
+
+Response InternalError(const RequestContext& context) {
+  return ErrorResponse(HttpStatus::internal_server_error,
+                       "internal server error (request id " + context.request_id + ")");
+}
+
+}  // namespace
+
+std::optional<Response> HttpServer::Impl::Admit(RequestContext& context, Dispatch* dispatch) {
+  Result<TargetParts> target = SplitTarget(context.target);
+  if (!target.ok()) return ErrorResponse(HttpStatus::bad_request, target.status().message());
+  context.path = target->path;
+  Result<KeyValues> query = ParseQuery(target->query);
+  if (!query.ok()) return ErrorResponse(HttpStatus::bad_request, query.status().message());
+  context.query = std::move(*query);
+
+  // Authentication comes before routing, so that unknown paths reveal nothing without a token.
+  if (!options_.bearer_token.empty()) {
+    bool is_public = false;
+    for (const std::string& path : options_.public_paths) is_public |= path == context.path;
+    if (!is_public && !HasBearerToken(context, options_.bearer_token)) {
+      return UnauthorizedResponse(context.Header("Authorization")
+                                      ? "invalid bearer token"
+                                      : "this server requires an Authorization: Bearer token");
+    }
+  }
+
+  // Nothing larger than the largest upload is accepted anywhere: refuse before routing.
+  if (context.content_length && *context.content_length > options_.max_upload_bytes) {
+    return ErrorResponse(HttpStatus::payload_too_large,
+                         "request body of " + std::to_string(*context.content_length) +
+                             " bytes exceeds the limit of " +
+                             std::to_string(options_.max_upload_bytes) + " bytes");
+  }
+
+  RouteMatch match = router_.Match(context.method, context.path);
+  switch (match.kind) {
+    case RouteMatch::Kind::kBadPath:
+      return ErrorResponse(HttpStatus::bad_request, "malformed request path");
+    case RouteMatch::Kind::kNotFound:
+      return ErrorResponse(HttpStatus::not_found, "no route for " + context.path);
+    case RouteMatch::Kind::kMethodNotAllowed:
+      return MethodNotAllowedResponse(match.allow);
+    case RouteMatch::Kind::kFallback:
+      dispatch->handler = &router_.fallback();
+      break;
+    case RouteMatch::Kind::kFound:
+      context.path_params = std::move(match.path_params);
+      if (match.route->streaming_handler) {
+        dispatch->streaming_handler = &match.route->streaming_handler;
+      } else {
+        dispatch->handler = &match.route->handler;
+      }
+      break;
+  }
+
+  dispatch->body_limit =
+      dispatch->streaming_handler != nullptr ? options_.max_upload_bytes : options_.max_body_bytes;
+  if (context.content_length && *context.content_length > dispatch->body_limit) {
+    return ErrorResponse(HttpStatus::payload_too_large,
+                         "request body of " + std::to_string(*context.content_length) +
+                             " bytes exceeds the limit of " + std::to_string(dispatch->body_limit) +
+                             " bytes for this route");
+  }
+  return std::nullopt;
+}
+
+// Note on the coroutines in this file: GCC 12 mishandles non-trivial temporaries inside co_await
+// expressions (a Response temporary was destroyed twice), so awaited calls get named lvalues only.
+net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
+    Connection& connection,
+    http::request_parser<http::buffer_body>& parser,
+    beast::flat_buffer& buffer,
+    std::vector<char>& chunk,
+    const std::string& remote_address) {
+  const auto start = std::chrono::steady_clock::now();
+  beast::tcp_stream& stream = connection.stream;
+  auto& request = parser.get();
+
+  RequestContext context;
+  context.method = request.method();
+  context.method_string = ToString(request.method_string());
+  context.target = ToString(request.target());
+  context.remote_address = remote_address;
+  for (const auto& field : request) {
+    context.headers.emplace_back(ToString(field.name_string()), ToString(field.value()));
+  }
+  const std::optional<std::string_view> client_id = context.Header("X-Request-Id");
+  context.request_id =
+      client_id && IsAcceptableRequestId(*client_id) ? std::string(*client_id) : NewRequestId();
+  if (parser.content_length()) context.content_length = *parser.content_length();
+
+  Outcome outcome;
+  outcome.keep_alive = request.keep_alive() && !stopping_;
+  const bool has_body = !parser.is_done();
+
+  // A response sent before the body was completely read; the connection is not reused then.
+  Dispatch dispatch;
+  std::optional<Response> refusal = Admit(context, &dispatch);
+
+  std::unique_ptr<BodySink> sink;
+  if (!refusal && dispatch.streaming_handler != nullptr) {
+    std::optional<StreamStart> stream_start =
+        Guarded(context, [&] { return (*dispatch.streaming_handler)(context); });
+    if (!stream_start) {
+      refusal = InternalError(context);
+    } else if (auto* response = std::get_if<Response>(&*stream_start)) {
+      refusal = std::move(*response);
+    } else {
+      sink = std::move(std::get<std::unique_ptr<BodySink>>(*stream_start));
+      if (sink == nullptr) {
+        LOG_ERROR << "streaming handler for " << context.path << " returned a null sink";
+        refusal = InternalError(context);
+      }
+    }
+  }
+
+  // Read the body: into context.body, or piece by piece into the sink.
+  if (!refusal && has_body) {
+    // Enforces the limit on chunked bodies, whose size is unknown up front.
+    parser.body_limit(dispatch.body_limit);
+    const std::optional<std::string_view> expect = context.Header("Expect");
+    if (expect && EqualsIgnoreCase(*expect, "100-continue")) {
+      http::response<http::empty_body> go_on{http::status::continue_, 11};
+      const bool written = co_await WriteMessage(stream, go_on);
+      if (!written) co_return Outcome{};
+    }
+    beast::error_code ec;
+    while (!parser.is_done()) {
+      request.body().data = chunk.data();
+      request.body().size = chunk.size();
+      stream.expires_after(options_.body_timeout);
+      co_await http::async_read_some(stream, buffer, parser, Awaitable(ec));
+      if (ec == http::error::need_buffer) ec = {};
+      if (ec) break;
+      const std::size_t n = chunk.size() - request.body().size;
+      if (n == 0) continue;
+      const std::string_view piece(chunk.data(), n);
+      if (sink == nullptr) {
+        context.body.append(piece);
+        continue;
+      }
+      std::optional<std::optional<Response>> early =
+          Guarded(context, [&] { return sink->OnData(piece); });
+      if (!early) {
+        refusal = InternalError(context);
+      } else if (*early) {
+        refusal = std::move(**early);
+      }
+      if (refusal) break;
+    }
+    request.body().data = nullptr;
+    request.body().size = 0;
+    if (ec) {
+      if (sink != nullptr) sink->OnAbort(ec.message());
+      sink.reset();
+      if (ec == http::error::body_limit) {
+        refusal = ErrorResponse(
+            HttpStatus::payload_too_large,
+            "request body exceeds the limit of " + std::to_string(dispatch.body_limit) + " bytes");
+      } else if (IsParseError(ec)) {
+        refusal = ErrorResponse(HttpStatus::bad_request, "malformed request body: " + ec.message());
+      } else {
+        // Timeout or disconnect: nobody is listening for a response.
+        LOG_INFO << "http " << context.method_string << " " << context.path
+                 << " aborted while reading the body: " << ec.message() << " "
+                 << context.remote_address << " id=" << context.request_id;
+        co_return Outcome{};
+      }
+    }
+  }
+
+  if (refusal) {
+    sink.reset();
+    if (has_body && !parser.is_done()) {
+      outcome.keep_alive = false;
+      outcome.body_unread = true;
+    }
+    const bool written =
+        co_await WriteResponse(stream, context, *refusal, outcome.keep_alive, start);
+    if (!written) outcome.keep_alive = false;
+    co_return outcome;
+  }
+
+  std::optional<Response> result =
+      sink != nullptr ? Guarded(context, [&] { return sink->OnComplete(context); })
+                      : Guarded(context, [&] { return (*dispatch.handler)(context); });
+  sink.reset();
+  if (!result) result = InternalError(context);
+  outcome.keep_alive = outcome.keep_alive && !stopping_;
+  const bool written = co_await WriteResponse(stream, context, *result, outcome.keep_alive, start);
+  if (!written) outcome.keep_alive = false;
+  co_return outcome;
+}
+
+//------------------------------------------------------------------------------------------------
+// Session.
+
+net::awaitable<void> HttpServer::Impl::Session(std::shared_ptr<Connection> connection) {
+  beast::tcp_stream& stream = connection->stream;
+  beast::error_code ec;
+  const tcp::endpoint remote = stream.socket().remote_endpoint(ec);
+  const std::string remote_address = ec ? std::string("unknown") : remote.address().to_string();
+
+  beast::flat_buffer buffer;
+  std::vector<char> chunk(kBodyChunkBytes);
+  bool linger = false;
+  while (!stopping_) {
+    http::request_parser<http::buffer_body> parser;
+    parser.header_limit(options_.max_header_bytes);
+    // The limit depends on the route, known only after the header: checked in HandleRequest.
+    // (Not boost::none: Beast 1.74 compares `len > none` as true and rejects every body.)
+    parser.body_limit(std::numeric_limits<std::uint64_t>::max());
+
+    connection->idle = true;
+    stream.expires_after(options_.header_timeout);
+    co_await http::async_read_header(stream, buffer, parser, Awaitable(ec));
+    connection->idle = false;
+    if (ec) {
+      if (ec == http::error::header_limit || IsParseError(ec)) {
+        RequestContext context;
+        context.remote_address = remote_address;
+        context.request_id = NewRequestId();
+        Response response =
+            ec == http::error::header_limit
+                ? ErrorResponse(HttpStatus::request_header_fields_too_large,
+                                "request header exceeds " +
+                                    std::to_string(options_.max_header_bytes) + " bytes")
+                : ErrorResponse(HttpStatus::bad_request, "malformed HTTP request: " + ec.message());
+        const auto now = std::chrono::steady_clock::now();
+        co_await WriteResponse(stream, context, response, /*keep_alive=*/false, now);
+        linger = true;
+      }
+      // Otherwise end of stream, timeout, reset or shutdown: close quietly.
+      break;
+    }
+    const Outcome outcome =
+        co_await HandleRequest(*connection, parser, buffer, chunk, remote_address);
+    if (!outcome.keep_alive) {
+      linger = outcome.body_unread;
+      break;
+    }
+  }
+
+  if (linger) {
+    // Nothing more will be answered: a shutdown may close this connection at once.
+    connection->idle = true;
+    co_await Linger(stream);
+  } else {
+    stream.socket().shutdown(tcp::socket::shutdown_send, ec);
+  }
+  stream.close();
+}
+
+net::awaitable<void> HttpServer::Impl::RejectBusy(tcp::socket socket) {
+  beast::tcp_stream stream(std::move(socket));
+  RequestContext context;
+  beast::error_code ec;
+  const tcp::endpoint remote = stream.socket().remote_endpoint(ec);
+  context.remote_address = ec ? std::string("unknown") : remote.address().to_string();
+  context.request_id = NewRequestId();
+  Response response =
+      RetryLaterResponse(HttpStatus::service_unavailable, "too many connections; retry later",
+                         options_.retry_after_seconds);
+  const auto now = std::chrono::steady_clock::now();
+  co_await WriteResponse(stream, context, response, /*keep_alive=*/false, now);
+  co_await Linger(stream);
+  stream.close();
+}
+
+//------------------------------------------------------------------------------------------------
+// Listener and shutdown.
+
+Status HttpServer::Impl::Listen() {
+  beast::error_code ec;
+  tcp::resolver resolver(ioc_);
+  const auto endpoints =
+      resolver.resolve(options_.host, std::to_string(options_.port), tcp::resolver::passive, ec);
+  const std::string address = options_.host + ":" + std::to_string(options_.port);
+  if (ec || endpoints.empty()) {
+    return Status::FailedPrecondition("cannot listen on " + address +
+                                      ": cannot resolve host: " + ec.message());
+  }
+  const tcp::endpoint endpoint = endpoints.begin()->endpoint();
+  acceptor_.open(endpoint.protocol(), ec);
+  if (!ec) acceptor_.set_option(net::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor_.bind(endpoint, ec);
+  if (!ec) acceptor_.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) {
+    beast::error_code ignored;
+    acceptor_.close(ignored);
+    return Status::FailedPrecondition("cannot listen on " + address + ": " + ec.message());
+  }
+  bound_port_ = acceptor_.local_endpoint(ec).port();
+  if (options_.handle_signals) {
+    signals_.add(SIGINT);
+    signals_.add(SIGTERM);
+  }
+  return Status::Ok();
+}
+
+net::awaitable<void> HttpServer::Impl::AcceptLoop() {
+  net::steady_timer backoff(control_);
+  while (true) {
+    beast::error_code ec;
+    tcp::socket socket(net::make_strand(ioc_));
+    co_await acceptor_.async_accept(socket, Awaitable(ec));
+    if (stopping_ || !acceptor_.is_open()) co_return;
+    if (ec) {
+      // Typically EMFILE: back off instead of spinning, and keep serving.
+      LOG_WARNING << "accept failed: " << ec.message();
+      backoff.expires_after(std::chrono::milliseconds(100));
+      co_await backoff.async_wait(Awaitable(ec));
+      continue;
+    }
+    auto self = shared_from_this();
+    if (ConnectionCount() >= options_.max_connections) {
+      net::co_spawn(socket.get_executor(), RejectBusy(std::move(socket)),
+                    [](std::exception_ptr) {});
+      continue;
+    }
+    auto connection = std::make_shared<Connection>(std::move(socket));
+    {
+      std::lock_guard<std::mutex> lock(connections_mutex_);
+      connections_.insert(connection);
+    }
+    net::co_spawn(connection->stream.get_executor(), Session(connection),
+                  [self, connection](std::exception_ptr error) {
+                    if (error) {
+                      try {
+                        std::rethrow_exception(error);
+                      } catch (const std::exception& e) {
+                        LOG_ERROR << "connection ended by an exception: " << e.what();
+                      } catch (...) {
+                        LOG_ERROR << "connection ended by a non-standard exception";
+                      }
+                    }
+                    std::lock_guard<std::mutex> lock(self->connections_mutex_);
+                    self->connections_.erase(connection);
+                  });
+  }
+}
+
+void HttpServer::Impl::CloseConnections(bool only_idle) {
+  std::vector<std::shared_ptr<Connection>> connections;
+  {
+    std::lock_guard<std::mutex> lock(connections_mutex_);
+    connections.assign(connections_.begin(), connections_.end());
+  }
+  for (auto& connection : connections) {
+    // On the connection's strand, so `idle` and the socket are not raced.
+    net::post(connection->stream.get_executor(), [connection, only_idle] {
+      if (only_idle && !connection->idle) return;
+      beast::error_code ec;
+      connection->stream.socket().shutdown(tcp::socket::shutdown_both, ec);
+      connection->stream.socket().close(ec);
+    });
+  }
+}
+
+net::awaitable<void> HttpServer::Impl::WaitForShutdown() {
+  beast::error_code ec;
+  if (!shutdown_requested_) co_await signals_.async_wait(Awaitable(ec));
+  LOG_INFO << "shutting down: no longer accepting connections, waiting up to "
+           << options_.shutdown_grace.count() << " ms for " << ConnectionCount()
+           << " open connection(s)";
+  stopping_ = true;
+  acceptor_.close(ec);
+  signals_.clear(ec);
+
+  // Idle keep-alive connections are closed at once; busy ones finish their request (their
+  // response then says Connection: close). Connections that turn idle later are closed by their
+  // session, which checks stopping_ before waiting for another request.
+  CloseConnections(/*only_idle=*/true);
+  const auto deadline = std::chrono::steady_clock::now() + options_.shutdown_grace;
+  net::steady_timer timer(control_);
+  while (ConnectionCount() > 0 && std::chrono::steady_clock::now() < deadline) {
+    timer.expires_after(std::chrono::milliseconds(20));
+    co_await timer.async_wait(Awaitable(ec));
+  }
+  if (const int left = ConnectionCount(); left > 0) {
+    LOG_WARNING << "shutdown grace period over: closing " << left << " connection(s)";
+    CloseConnections(/*only_idle=*/false);
+  }
+}
+
+void HttpServer::Impl::RunLoop() {
+  // A handler exception escaping run() would be a bug in this file; log it and keep serving.
+  while (true) {
+    try {
+      ioc_.run();
+      return;
+    } catch (const std::exception& e) {
+      LOG_ERROR << "exception escaped the I/O loop: " << e.what();
+    }
+  }
+}
+
+Status HttpServer::Impl::Run() {
+  if (!acceptor_.is_open()) {
+    return Status::FailedPrecondition("HttpServer::Run() called before a successful Listen()");
+  }
+  auto log_error = [](std::exception_ptr error) {
+    if (!error) return;
+    try {
+      std::rethrow_exception(error);
+    } catch (const std::exception& e) {
+      LOG_ERROR << "server task failed: " << e.what();
+    }
+  };
+  net::co_spawn(control_, AcceptLoop(), log_error);
+  net::co_spawn(control_, WaitForShutdown(), log_error);
+
+  std::vector<std::thread> threads;
+  for (int i = 1; i < options_.num_threads; ++i) threads.emplace_back([this] { RunLoop(); });
+  RunLoop();
+  for (std::thread& thread : threads) thread.join();
+  LOG_INFO << "server stopped";
+  return Status::Ok();
+}
+
+void HttpServer::Impl::Shutdown() {
+  shutdown_requested_ = true;
+  // Capturing `this` (not a shared_ptr) avoids a reference cycle through the io_context if Run()
+  // is never called; the handler then simply never runs.
+  net::post(control_, [this] {
+    beast::error_code ec;
+    signals_.cancel(ec);
+  });
+}
+
+//------------------------------------------------------------------------------------------------
+
+HttpServer::HttpServer(HttpServerOptions options, Router router) {
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  impl_ = std::make_shared<Impl>(std::move(options), std::move(router));
+}
+
+HttpServer::~HttpServer() = default;
+
+Status HttpServer::Listen() { return impl_->Listen(); }
+int HttpServer::port() const { return impl_->port(); }
+Status HttpServer::Run() { return impl_->Run(); }
+void HttpServer::Shutdown() { impl_->Shutdown(); }
+int HttpServer::ConnectionCount() const { return impl_->ConnectionCount(); }
+
+}  // namespace reconduit::server

@@ -1,0 +1,70 @@
+#include "server/http/static_files.h"
+
+#include "server/http/url.h"
+
+#include <algorithm>
+#include <system_error>
+
+namespace reconduit::server {
+namespace fs = std::filesystem;
+
+Result<fs::path> ResolveStaticPath(const fs::path& root, std::string_view raw_path) {
+  Result<std::vector<std::string>> segments = DecodePathSegments(raw_path);
+  if (!segments.ok()) return segments.status();
+  fs::path relative;
+  for (std::size_t i = 0; i < segments->size(); ++i) {
+    const std::string& segment = (*segments)[i];
+    const bool last = i + 1 == segments->size();
+    if (segment.empty()) {
+      // Only the final segment may be empty ("/" or "/docs/"): it names the folder's index.
+      if (!last) return Status::InvalidArgument("empty path segment");
+      relative /= "index.html";
+      break;
+    }
+    if (segment.front() == '.') {
+      // "..", "." and hidden files such as .git or .env.
+      return Status::InvalidArgument("path segment starting with '.'");
+    }
+    if (segment.find_first_of("/\\") != std::string::npos) {
+      return Status::InvalidArgument("encoded path separator in path segment");
+    }
+    if (segment.find('\0') != std::string::npos) {
+      return Status::InvalidArgument("NUL byte in path");
+    }
+    relative /= segment;
+  }
+  if (relative.is_absolute() || relative.has_root_name()) {
+    return Status::InvalidArgument("absolute path");
+  }
+
+  std::error_code ec;
+  const fs::path canonical_root = fs::canonical(root, ec);
+  if (ec) return Status::NotFound("static folder does not exist");
+  const fs::path candidate = fs::canonical(canonical_root / relative, ec);
+  if (ec) return Status::NotFound("no such file");
+  // The canonical file must be below the canonical root (symlinks resolved).
+  const auto [root_end, ignored] = std::mismatch(canonical_root.begin(), canonical_root.end(),
+                                                 candidate.begin(), candidate.end());
+  if (root_end != canonical_root.end()) {
+    return Status::InvalidArgument("path leaves the static folder");
+  }
+  if (!fs::is_regular_file(candidate, ec)) return Status::NotFound("no such file");
+  return candidate;
+}
+
+Handler MakeStaticFileHandler(fs::path root) {
+  return [root = std::move(root)](RequestContext& context) -> Response {
+    Result<fs::path> file = ResolveStaticPath(root, context.path);
+    if (!file.ok()) {
+      if (file.status().code() == StatusCode::kInvalidArgument) {
+        return ErrorResponse(HttpStatus::bad_request, "invalid path: " + file.status().message());
+      }
+      return ErrorResponse(HttpStatus::not_found, "no such file: " + context.path);
+    }
+    Response response = Response::File(*file);
+    response.SetHeader("Cache-Control", "no-cache");
+    return response;
+  };
+}
+
+}  // namespace reconduit::server
