@@ -2,6 +2,7 @@
 
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
+#include "core/pipeline/stages/matching_stage.h"
 #include "core/pipeline/stages/package_stage.h"
 #include "core/pipeline/stages/pairs_stage.h"
 
@@ -19,6 +20,7 @@ std::vector<std::pair<std::string, StageFactory>> WorkStages() {
       {"ingest", [] { return std::make_unique<IngestStage>(); }},
       {"features", [] { return std::make_unique<FeaturesStage>(); }},
       {"pairs", [] { return std::make_unique<PairsStage>(); }},
+      {"matching", [] { return std::make_unique<MatchingStage>(); }},
   };
 }
 

@@ -1,0 +1,267 @@
+#include "core/pipeline/stages/matching_stage.h"
+
+#include "core/feature/matcher.h"
+#include "core/io/file_util.h"
+#include "core/pipeline/stages/features_stage.h"
+#include "core/pipeline/stages/ingest_stage.h"
+#include "core/pipeline/stages/pairs_stage.h"
+#include "core/util/logging.h"
+#include "core/util/parallel.h"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cstring>
+#include <map>
+#include <mutex>
+
+namespace reconduit {
+namespace {
+
+// pairs.bin: "RCMT", u32 version, u64 count, then per pair:
+//   i32 image1, i32 image2, i32 type, i32 num_putative, i32 inliers_F, i32 inliers_H,
+//   f64 gric_F, f64 gric_H, f64 F[9] (row-major), f64 H[9], u64 n, n x (i32 index1, i32 index2)
+constexpr char kMagic[4] = {'R', 'C', 'M', 'T'};
+constexpr std::uint32_t kVersion = 1;
+
+template <typename T>
+void Put(std::string* out, const T& value) {
+  out->append(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+template <typename T>
+bool Get(const std::string& in, std::size_t* offset, T* value) {
+  if (*offset + sizeof(T) > in.size()) return false;
+  std::memcpy(value, in.data() + *offset, sizeof(T));
+  *offset += sizeof(T);
+  return true;
+}
+
+void PutMatrix(std::string* out, const Eigen::Matrix3d& m) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) Put(out, m(r, c));
+  }
+}
+
+bool GetMatrix(const std::string& in, std::size_t* offset, Eigen::Matrix3d* m) {
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      if (!Get(in, offset, &(*m)(r, c))) return false;
+    }
+  }
+  return true;
+}
+
+std::string Serialize(const std::vector<VerifiedPair>& pairs) {
+  std::string out(kMagic, 4);
+  Put(&out, kVersion);
+  Put(&out, static_cast<std::uint64_t>(pairs.size()));
+  for (const VerifiedPair& p : pairs) {
+    Put(&out, static_cast<std::int32_t>(p.matches.image1));
+    Put(&out, static_cast<std::int32_t>(p.matches.image2));
+    Put(&out, static_cast<std::int32_t>(p.type));
+    Put(&out, static_cast<std::int32_t>(p.num_putative));
+    Put(&out, static_cast<std::int32_t>(p.num_inliers_F));
+    Put(&out, static_cast<std::int32_t>(p.num_inliers_H));
+    Put(&out, p.gric_F);
+    Put(&out, p.gric_H);
+    PutMatrix(&out, p.F);
+    PutMatrix(&out, p.H);
+    Put(&out, static_cast<std::uint64_t>(p.matches.matches.size()));
+    for (const FeatureMatch& m : p.matches.matches) {
+      Put(&out, static_cast<std::int32_t>(m.index1));
+      Put(&out, static_cast<std::int32_t>(m.index2));
+    }
+  }
+  return out;
+}
+
+// The match graph: photos on a circle, an edge per verified pair, thicker for more inliers,
+// green for F pairs and orange for H (planar or rotation-only) pairs.
+cv::Mat RenderMatchGraph(int num_images,
+                         const std::vector<int>& indices,
+                         const std::vector<VerifiedPair>& pairs) {
+  const int size = 640, radius = 260;
+  cv::Mat picture(size, size, CV_8UC3, cv::Scalar(255, 255, 255));
+  std::map<int, cv::Point> position;
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const double angle = 2 * M_PI * k / std::max<std::size_t>(1, indices.size()) - M_PI / 2;
+    position[indices[k]] = cv::Point(size / 2 + static_cast<int>(radius * std::cos(angle)),
+                                     size / 2 + static_cast<int>(radius * std::sin(angle)));
+  }
+  int most = 1;
+  for (const VerifiedPair& p : pairs) most = std::max<int>(most, p.matches.matches.size());
+  for (const VerifiedPair& p : pairs) {
+    if (p.type != TwoViewModelType::kFundamental && p.type != TwoViewModelType::kHomography)
+      continue;
+    const int thickness = 1 + static_cast<int>(5.0 * p.matches.matches.size() / most);
+    const cv::Scalar colour = p.type == TwoViewModelType::kFundamental ? cv::Scalar(60, 160, 60)
+                                                                       : cv::Scalar(0, 140, 255);
+    cv::line(picture, position[p.matches.image1], position[p.matches.image2], colour, thickness,
+             cv::LINE_AA);
+  }
+  for (const auto& [index, point] : position) {
+    cv::circle(picture, point, 12, cv::Scalar(90, 60, 30), cv::FILLED, cv::LINE_AA);
+    cv::putText(picture, std::to_string(index), point + cv::Point(-8, 5), cv::FONT_HERSHEY_SIMPLEX,
+                0.4, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  }
+  (void)num_images;
+  return picture;
+}
+
+}  // namespace
+
+StageResult MatchingStage::Run(StageContext& context) const {
+  auto images = ReadIngestedImages(context.workspace);
+  if (!images.ok()) return StageResult::Failed(images.status().message());
+  auto chosen = ReadImagePairs(context.workspace);
+  if (!chosen.ok()) return StageResult::Failed(chosen.status().message());
+
+  // Keypoints and unit-norm descriptors of every photo that takes part.
+  std::map<int, FeatureSet> features;
+  std::map<int, DescriptorMatrix> descriptors;
+  std::vector<int> indices;
+  for (const ImagePair& p : *chosen) {
+    for (int index : {p.image1, p.image2}) {
+      if (features.count(index)) continue;
+      auto f = ReadImageFeatures(context.workspace, index);
+      if (!f.ok()) return StageResult::Failed(f.status().message());
+      descriptors[index] = ToDescriptorMatrix(*f);
+      f->descriptors.release();  // Only keypoints are needed from here on.
+      features[index] = std::move(*f);
+      indices.push_back(index);
+    }
+  }
+  std::sort(indices.begin(), indices.end());
+
+  TwoViewGeometryOptions geometry;
+  std::vector<VerifiedPair> verified(chosen->size());
+  context.progress.Restart(chosen->size(), "pairs");
+  ParallelFor(
+      0, chosen->size(),
+      [&](std::size_t k) {
+        context.cancel.ThrowIfCancelled();
+        const ImagePair& pair = (*chosen)[k];
+        VerifiedPair& out = verified[k];
+        out.matches.image1 = pair.image1;
+        out.matches.image2 = pair.image2;
+        const std::vector<FeatureMatch> putative = MatchDescriptors(
+            descriptors.at(pair.image1), descriptors.at(pair.image2), MatchingOptions());
+        out.num_putative = static_cast<int>(putative.size());
+        const FeatureSet& f1 = features.at(pair.image1);
+        const FeatureSet& f2 = features.at(pair.image2);
+        std::vector<Eigen::Vector2d> points1, points2;
+        for (const FeatureMatch& m : putative) {
+          points1.emplace_back(f1.keypoints[m.index1].x, f1.keypoints[m.index1].y);
+          points2.emplace_back(f2.keypoints[m.index2].x, f2.keypoints[m.index2].y);
+        }
+        const TwoViewGeometryReport report =
+            EstimateTwoViewGeometry(points1, points2, geometry, &context.cancel);
+        context.cancel.ThrowIfCancelled();
+        out.type = report.type;
+        out.F = report.F;
+        out.H = report.H;
+        out.num_inliers_F = static_cast<int>(report.num_inliers_F);
+        out.num_inliers_H = static_cast<int>(report.num_inliers_H);
+        out.gric_F = report.gric_F;
+        out.gric_H = report.gric_H;
+        if (report.success) {
+          const std::vector<char>& mask = report.inlier_mask();
+          for (std::size_t i = 0; i < putative.size(); ++i) {
+            if (mask[i]) out.matches.matches.push_back(putative[i]);
+          }
+        }
+        context.progress.Advance();
+      },
+      context.options.num_threads);
+
+  std::vector<VerifiedPair> usable;
+  nlohmann::json summary_pairs = nlohmann::json::array();
+  int num_f = 0, num_h = 0;
+  std::size_t inliers = 0;
+  for (VerifiedPair& p : verified) {
+    summary_pairs.push_back(
+        {{"image1", p.matches.image1},
+         {"image2", p.matches.image2},
+         {"model", TwoViewModelTypeName(p.type)},
+         {"putative", p.num_putative},
+         {"inliers_F", p.num_inliers_F},
+         {"inliers_H", p.num_inliers_H},
+         {"gric_F", std::isfinite(p.gric_F) ? nlohmann::json(p.gric_F) : nlohmann::json()},
+         {"gric_H", std::isfinite(p.gric_H) ? nlohmann::json(p.gric_H) : nlohmann::json()}});
+    if (p.type == TwoViewModelType::kFundamental) ++num_f;
+    if (p.type == TwoViewModelType::kHomography) ++num_h;
+    if (!p.matches.matches.empty()) {
+      inliers += p.matches.matches.size();
+      usable.push_back(std::move(p));
+    }
+  }
+  if (Status s = WriteFileAtomically(context.stage_dir / "pairs.bin", Serialize(usable)); !s.ok()) {
+    return StageResult::Failed(s.message());
+  }
+  if (Status s = WriteFileAtomically(context.stage_dir / "summary.json",
+                                     nlohmann::json{{"pairs", summary_pairs}}.dump(1) + "\n");
+      !s.ok()) {
+    return StageResult::Failed(s.message());
+  }
+  std::filesystem::create_directories(context.workspace.output_dir / "report");
+  std::vector<std::uint8_t> png;
+  cv::imencode(".png", RenderMatchGraph(static_cast<int>(images->size()), indices, usable), png);
+  if (Status s = WriteFileAtomically(
+          context.workspace.output_dir / "report" / "match_graph.png",
+          std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+      !s.ok()) {
+    return StageResult::Failed(s.message());
+  }
+  LOG_INFO << "matching: " << verified.size() << " pairs, " << num_f << " with epipolar geometry, "
+           << num_h << " planar or rotation-only, " << inliers << " inlier matches";
+  if (usable.empty()) {
+    return StageResult::Degenerate("no pair of photos could be matched: do the photos overlap?");
+  }
+  return StageResult::Success({{"pairs", verified.size()},
+                               {"fundamental", num_f},
+                               {"homography", num_h},
+                               {"inlier_matches", inliers}});
+}
+
+Result<std::vector<VerifiedPair>> ReadVerifiedPairs(const Workspace& workspace) {
+  const std::filesystem::path path = workspace.StageDir("matching") / "pairs.bin";
+  auto bytes = ReadFile(path);
+  if (!bytes.ok()) return bytes.status();
+  const std::string& in = *bytes;
+  std::size_t offset = 4;
+  std::uint32_t version = 0;
+  std::uint64_t count = 0;
+  if (in.size() < 4 || std::memcmp(in.data(), kMagic, 4) != 0 || !Get(in, &offset, &version) ||
+      version != kVersion || !Get(in, &offset, &count)) {
+    return Status::Internal(path.string() + ": not a Reconduit matches file (version 1)");
+  }
+  std::vector<VerifiedPair> pairs(count);
+  for (VerifiedPair& p : pairs) {
+    std::int32_t i1, i2, type, putative, inliers_f, inliers_h;
+    std::uint64_t n = 0;
+    bool ok = Get(in, &offset, &i1) && Get(in, &offset, &i2) && Get(in, &offset, &type) &&
+              Get(in, &offset, &putative) && Get(in, &offset, &inliers_f) &&
+              Get(in, &offset, &inliers_h) && Get(in, &offset, &p.gric_F) &&
+              Get(in, &offset, &p.gric_H) && GetMatrix(in, &offset, &p.F) &&
+              GetMatrix(in, &offset, &p.H) && Get(in, &offset, &n);
+    if (!ok || offset + n * 8 > in.size()) return Status::Internal(path.string() + ": truncated");
+    p.matches.image1 = i1;
+    p.matches.image2 = i2;
+    p.type = static_cast<TwoViewModelType>(type);
+    p.num_putative = putative;
+    p.num_inliers_F = inliers_f;
+    p.num_inliers_H = inliers_h;
+    p.matches.matches.resize(n);
+    for (FeatureMatch& m : p.matches.matches) {
+      std::int32_t a = 0, b = 0;
+      Get(in, &offset, &a);
+      Get(in, &offset, &b);
+      m = {a, b};
+    }
+  }
+  if (offset != in.size()) return Status::Internal(path.string() + ": trailing bytes");
+  return pairs;
+}
+
+}  // namespace reconduit

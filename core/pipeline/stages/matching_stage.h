@@ -1,0 +1,46 @@
+// Stage 4: match the chosen pairs and verify them geometrically.
+//
+// For each pair from the pairs stage: exhaustive RootSIFT matching (ratio test, mutual check),
+// then robust F and H with GRIC model selection (core/estimators/two_view_geometry.h). Pairs
+// with a usable model keep the inliers of that model. Writes work/matching/pairs.bin (binary,
+// see matching_stage.cc) and work/matching/summary.json (per pair counts, model and GRIC, for
+// people), and the match graph as a picture, output/report/match_graph.png.
+#ifndef RECONDUIT_CORE_PIPELINE_STAGES_MATCHING_STAGE_H_
+#define RECONDUIT_CORE_PIPELINE_STAGES_MATCHING_STAGE_H_
+
+#include "core/estimators/two_view_geometry.h"
+#include "core/pipeline/stage.h"
+#include "core/sfm/tracks.h"
+
+#include <Eigen/Core>
+
+#include <vector>
+
+namespace reconduit {
+
+// One verified pair, as later stages read it.
+struct VerifiedPair {
+  PairMatches matches;  // Inliers of the chosen model.
+  TwoViewModelType type = TwoViewModelType::kUndefined;
+  Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  int num_putative = 0;  // Descriptor matches before geometric verification.
+  int num_inliers_F = 0;
+  int num_inliers_H = 0;
+  double gric_F = 0.0;
+  double gric_H = 0.0;
+};
+
+class MatchingStage : public Stage {
+ public:
+  std::string_view Name() const override { return "matching"; }
+  std::string_view Title() const override { return "Matching photos"; }
+  double Weight() const override { return 2.0; }
+  StageResult Run(StageContext& context) const override;
+};
+
+Result<std::vector<VerifiedPair>> ReadVerifiedPairs(const Workspace& workspace);
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_PIPELINE_STAGES_MATCHING_STAGE_H_
