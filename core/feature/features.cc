@@ -60,7 +60,9 @@ Result<FeatureSet> ReadFeatures(const std::filesystem::path& path) {
   features.image_height = header.height;
   features.keypoints.resize(header.count);
   const char* cursor = bytes->data() + sizeof(Header);
-  std::memcpy(features.keypoints.data(), cursor, header.count * sizeof(Keypoint));
+  if (header.count > 0) {  // memcpy from or to a null pointer is undefined even for 0 bytes.
+    std::memcpy(features.keypoints.data(), cursor, header.count * sizeof(Keypoint));
+  }
   cursor += header.count * sizeof(Keypoint);
   features.descriptors.create(static_cast<int>(header.count), 128, CV_8U);
   if (header.count > 0) std::memcpy(features.descriptors.data, cursor, header.count * 128);

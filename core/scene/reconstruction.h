@@ -11,16 +11,17 @@
 #ifndef RECONDUIT_CORE_SCENE_RECONSTRUCTION_H_
 #define RECONDUIT_CORE_SCENE_RECONSTRUCTION_H_
 
+#include "core/geometry/camera.h"
+#include "core/geometry/rigid3.h"
+#include "core/util/logging.h"
+
 #include <Eigen/Core>
+
 #include <cstdint>
 #include <limits>
 #include <map>
 #include <string>
 #include <vector>
-
-#include "core/geometry/camera.h"
-#include "core/geometry/rigid3.h"
-#include "core/util/logging.h"
 
 namespace reconduit {
 
