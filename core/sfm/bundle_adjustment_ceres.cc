@@ -1,0 +1,505 @@
+// Bundle adjustment with Ceres: the only implementation of bundle_adjustment.h and, with
+// reprojection_error.h, the only code in core/ that sees Ceres types.
+//
+// The solver works on copies of the parameters (poses, intrinsics, points) held here, and
+// writes them back into the Reconstruction only after a usable solve. That keeps the
+// reconstruction untouched when the solve fails or is cancelled, and keeps constant
+// parameters bit-identical.
+#include "core/sfm/bundle_adjustment.h"
+#include "core/sfm/reprojection_error.h"
+#include "core/util/logging.h"
+#include "core/util/parallel.h"
+#include "core/util/timer.h"
+
+#include <ceres/iteration_callback.h>
+#include <ceres/loss_function.h>
+#include <ceres/manifold.h>
+#include <ceres/ordered_groups.h>
+#include <ceres/problem.h>
+#include <ceres/solver.h>
+#include <ceres/types.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <unordered_map>
+#include <vector>
+
+namespace reconduit {
+namespace {
+
+using IntrinsicsBlock = std::array<double, kNumIntrinsics>;
+
+// Ceres's loss for our enum; nullptr is Ceres's trivial loss. Caller owns the result.
+std::unique_ptr<ceres::LossFunction> CreateLoss(BundleAdjustmentLoss loss, double scale) {
+  switch (loss) {
+    case BundleAdjustmentLoss::kTrivial:
+      return nullptr;
+    case BundleAdjustmentLoss::kHuber:
+      return std::make_unique<ceres::HuberLoss>(scale);
+    case BundleAdjustmentLoss::kCauchy:
+      return std::make_unique<ceres::CauchyLoss>(scale);
+  }
+  return nullptr;
+}
+
+IntrinsicsBlock IntrinsicsFromCamera(const Camera& camera) {
+  return {camera.focal, camera.cx, camera.cy, camera.k1, camera.k2};
+}
+
+void IntrinsicsToCamera(const IntrinsicsBlock& block, Camera* camera) {
+  camera->focal = block[kIntrinsicsFocal];
+  camera->cx = block[kIntrinsicsCx];
+  camera->cy = block[kIntrinsicsCy];
+  camera->k1 = block[kIntrinsicsK1];
+  camera->k2 = block[kIntrinsicsK2];
+}
+
+// Polls the cancel token once per solver iteration (and after the initial evaluation) and
+// logs progress at debug level. Returning SOLVER_ABORT makes Ceres stop with USER_FAILURE
+// without updating the parameter blocks.
+class CancelAndLogCallback : public ceres::IterationCallback {
+ public:
+  CancelAndLogCallback(const CancelToken& cancel, std::string_view what)
+      : cancel_(cancel), what_(what) {}
+
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    LOG_DEBUG << what_ << " iteration " << summary.iteration << ": cost " << summary.cost
+              << ", change " << summary.cost_change << ", |gradient| " << summary.gradient_max_norm
+              << ", |step| " << summary.step_norm << ", radius " << summary.trust_region_radius
+              << (summary.step_is_successful ? "" : " (rejected)");
+    if (cancel_.IsCancelled()) {
+      cancelled_ = true;
+      return ceres::SOLVER_ABORT;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+
+  bool cancelled() const { return cancelled_; }
+
+ private:
+  const CancelToken& cancel_;
+  std::string_view what_;
+  bool cancelled_ = false;
+};
+
+// One pose in the problem: a copy of cam_from_world in Ceres's parameter layout.
+struct PoseBlock {
+  std::array<double, 4> rotation{};  // Eigen order x, y, z, w.
+  std::array<double, 3> translation{};
+  bool constant = true;
+};
+
+PoseBlock PoseBlockFromRigid(const Rigid3d& cam_from_world) {
+  PoseBlock block;
+  Eigen::Map<Eigen::Vector4d>(block.rotation.data()) = cam_from_world.rotation.coeffs();
+  Eigen::Map<Eigen::Vector3d>(block.translation.data()) = cam_from_world.translation;
+  return block;
+}
+
+void PoseBlockToRigid(const PoseBlock& block, Rigid3d* cam_from_world) {
+  cam_from_world->rotation.coeffs() = Eigen::Map<const Eigen::Vector4d>(block.rotation.data());
+  cam_from_world->rotation.normalize();
+  cam_from_world->translation = Eigen::Map<const Eigen::Vector3d>(block.translation.data());
+}
+
+// An observation that entered the problem.
+struct UsedObservation {
+  int point_id;
+  int image_id;
+  int keypoint;
+};
+
+// RMS reprojection error in pixels of the used observations, as Camera::ImgFromCam computes
+// it; an observation behind its camera counts as infinite.
+double RmsReprojectionError(const Reconstruction& reconstruction,
+                            const std::vector<UsedObservation>& observations) {
+  if (observations.empty()) return 0.0;
+  double sum = 0.0;
+  for (const UsedObservation& o : observations) {
+    const double e = reconstruction.ReprojectionError(reconstruction.points.at(o.point_id),
+                                                      Observation{o.image_id, o.keypoint});
+    sum += e * e;
+  }
+  return std::sqrt(sum / static_cast<double>(observations.size()));
+}
+
+// The linear solver for `num_variable_images` under the options.
+void ChooseLinearSolver(const BundleAdjustmentOptions& options,
+                        int num_variable_images,
+                        ceres::Solver::Options* solver_options) {
+  BundleAdjustmentLinearSolver choice = options.linear_solver;
+  if (choice == BundleAdjustmentLinearSolver::kAuto) {
+    if (num_variable_images <= options.max_images_dense_schur) {
+      choice = BundleAdjustmentLinearSolver::kDenseSchur;
+    } else if (num_variable_images <= options.max_images_sparse_schur) {
+      choice = BundleAdjustmentLinearSolver::kSparseSchur;
+    } else {
+      choice = BundleAdjustmentLinearSolver::kIterativeSchur;
+    }
+  }
+  if (choice == BundleAdjustmentLinearSolver::kSparseSchur) {
+    if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
+      solver_options->sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+    } else if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)) {
+      solver_options->sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+    } else {
+      choice = BundleAdjustmentLinearSolver::kIterativeSchur;
+    }
+  }
+  switch (choice) {
+    case BundleAdjustmentLinearSolver::kAuto:
+    case BundleAdjustmentLinearSolver::kDenseSchur:
+      solver_options->linear_solver_type = ceres::DENSE_SCHUR;
+      break;
+    case BundleAdjustmentLinearSolver::kSparseSchur:
+      solver_options->linear_solver_type = ceres::SPARSE_SCHUR;
+      break;
+    case BundleAdjustmentLinearSolver::kIterativeSchur:
+      solver_options->linear_solver_type = ceres::ITERATIVE_SCHUR;
+      solver_options->preconditioner_type = ceres::SCHUR_JACOBI;
+      break;
+  }
+}
+
+// The translation coordinate of `image` to hold constant to fix the scale: the largest
+// coordinate of the vector from its centre to the reference centre, in its camera frame
+// (holding a coordinate that is near zero would leave the scale free).
+int AutoScaleFixingIndex(const Rigid3d& cam_from_world, const Rigid3d* reference) {
+  const Eigen::Vector3d direction =
+      reference != nullptr ? Eigen::Vector3d(cam_from_world * reference->CenterInWorld())
+                           : cam_from_world.translation;
+  int index = 0;
+  direction.cwiseAbs().maxCoeff(&index);
+  return index;
+}
+
+std::string TerminationName(ceres::TerminationType type) {
+  return ceres::TerminationTypeToString(type);
+}
+
+}  // namespace
+
+BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
+                                     const CancelToken& cancel,
+                                     Reconstruction* reconstruction) {
+  THROW_CHECK_NOTNULL(reconstruction);
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  cancel.ThrowIfCancelled();
+  const Timer timer;
+  Reconstruction& rec = *reconstruction;
+  BundleAdjustmentSummary summary;
+
+  // Ids named in the options must exist: a wrong id is a caller bug, not a data condition.
+  const std::set<int> constant_poses(options.constant_pose_image_ids.begin(),
+                                     options.constant_pose_image_ids.end());
+  const std::set<int> variable_poses(options.variable_pose_image_ids.begin(),
+                                     options.variable_pose_image_ids.end());
+  const std::set<int> constant_cameras(options.constant_camera_ids.begin(),
+                                       options.constant_camera_ids.end());
+  for (const std::set<int>* ids : {&constant_poses, &variable_poses}) {
+    for (int id : *ids) THROW_CHECK(rec.images.contains(id)) << "no image " << id;
+  }
+  for (int id : constant_cameras) THROW_CHECK(rec.cameras.contains(id)) << "no camera " << id;
+  if (options.scale_fixing_image_id != kInvalidId) {
+    THROW_CHECK(rec.images.contains(options.scale_fixing_image_id))
+        << "no image " << options.scale_fixing_image_id;
+  }
+  const bool local = !variable_poses.empty();
+  const auto pose_is_variable = [&](int image_id) {
+    return !constant_poses.contains(image_id) && (!local || variable_poses.contains(image_id));
+  };
+
+  // The points to adjust: all of them (global), or those seen by the variable images (local).
+  std::vector<int> candidate_points;
+  if (local) {
+    std::set<int> seen;
+    for (int image_id : variable_poses) {
+      for (int point_id : rec.images.at(image_id).point_for_keypoint) {
+        if (point_id != kInvalidId && rec.points.contains(point_id)) seen.insert(point_id);
+      }
+    }
+    candidate_points.assign(seen.begin(), seen.end());
+  } else {
+    candidate_points.reserve(rec.points.size());
+    for (const auto& [point_id, point] : rec.points) candidate_points.push_back(point_id);
+  }
+
+  // Parameter copies. std::map nodes do not move, so pointers into them stay valid.
+  std::map<int, PoseBlock> poses;
+  std::map<int, IntrinsicsBlock> intrinsics;
+  std::unordered_map<int, std::array<double, 3>> points;
+  points.reserve(candidate_points.size());
+  std::vector<UsedObservation> used;
+  std::vector<UsedObservation> usable;  // Per point, reused.
+  for (int point_id : candidate_points) {
+    const Point3D& point = rec.points.at(point_id);
+    usable.clear();
+    for (const Observation& o : point.observations) {
+      const auto image_it = rec.images.find(o.image_id);
+      THROW_CHECK(image_it != rec.images.end())
+          << "point " << point_id << " is observed by unknown image " << o.image_id;
+      const RegisteredImage& image = image_it->second;
+      THROW_CHECK(o.keypoint >= 0 && o.keypoint < static_cast<int>(image.keypoints.size()))
+          << "point " << point_id << ": keypoint " << o.keypoint << " of image " << o.image_id;
+      THROW_CHECK(rec.cameras.contains(image.camera_id))
+          << "image " << o.image_id << " has unknown camera " << image.camera_id;
+      // A point behind the camera has no projection (ImgFromCam); it could not be evaluated.
+      if (!((image.cam_from_world * point.xyz_in_world).z() > 0.0)) {
+        ++summary.num_skipped_observations;
+        continue;
+      }
+      usable.push_back({point_id, o.image_id, o.keypoint});
+    }
+    if (usable.size() < 2) {
+      ++summary.num_skipped_points;
+      continue;
+    }
+    Eigen::Map<Eigen::Vector3d>(points[point_id].data()) = point.xyz_in_world;
+    for (const UsedObservation& o : usable) {
+      const RegisteredImage& image = rec.images.at(o.image_id);
+      if (!poses.contains(o.image_id)) {
+        PoseBlock& block = poses[o.image_id] = PoseBlockFromRigid(image.cam_from_world);
+        block.constant = !pose_is_variable(o.image_id);
+      }
+      if (!intrinsics.contains(image.camera_id)) {
+        intrinsics[image.camera_id] = IntrinsicsFromCamera(rec.cameras.at(image.camera_id));
+      }
+      used.push_back(o);
+    }
+  }
+
+  summary.num_images = static_cast<int>(poses.size());
+  for (const auto& [image_id, block] : poses) summary.num_variable_images += !block.constant;
+  summary.num_cameras = static_cast<int>(intrinsics.size());
+  summary.num_points = static_cast<int>(points.size());
+  summary.num_observations = static_cast<int>(used.size());
+  if (used.empty()) {
+    summary.message = "nothing to adjust: no point has 2 or more usable observations";
+    summary.time_seconds = timer.ElapsedSeconds();
+    return summary;
+  }
+  summary.initial_rms_px = RmsReprojectionError(rec, used);
+
+  // The loss is shared by all residuals and owned here; it must outlive the problem.
+  const std::unique_ptr<ceres::LossFunction> loss = CreateLoss(options.loss, options.loss_scale);
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  for (const UsedObservation& o : used) {
+    const RegisteredImage& image = rec.images.at(o.image_id);
+    PoseBlock& pose = poses.at(o.image_id);
+    problem.AddResidualBlock(ReprojectionError::Create(image.keypoints[o.keypoint]), loss.get(),
+                             pose.rotation.data(), pose.translation.data(),
+                             points.at(o.point_id).data(), intrinsics.at(image.camera_id).data());
+  }
+
+  // Poses: rotation on the unit-quaternion manifold; constant blocks stay untouched.
+  const Rigid3d* scale_reference = nullptr;
+  for (int id : options.constant_pose_image_ids) {
+    if (poses.contains(id)) {
+      scale_reference = &rec.images.at(id).cam_from_world;
+      break;
+    }
+  }
+  for (auto& [image_id, pose] : poses) {
+    if (pose.constant) {
+      problem.SetParameterBlockConstant(pose.rotation.data());
+      problem.SetParameterBlockConstant(pose.translation.data());
+      continue;
+    }
+    problem.SetManifold(pose.rotation.data(), new ceres::EigenQuaternionManifold);
+    if (image_id == options.scale_fixing_image_id) {
+      const int index =
+          options.scale_fixing_translation_index >= 0
+              ? options.scale_fixing_translation_index
+              : AutoScaleFixingIndex(rec.images.at(image_id).cam_from_world, scale_reference);
+      problem.SetManifold(pose.translation.data(), new ceres::SubsetManifold(3, {index}));
+      LOG_DEBUG << "BA: scale fixed by translation[" << index << "] of image " << image_id;
+    }
+  }
+  if (options.scale_fixing_image_id != kInvalidId &&
+      (!poses.contains(options.scale_fixing_image_id) ||
+       poses.at(options.scale_fixing_image_id).constant)) {
+    LOG_WARNING << "BA: scale-fixing image " << options.scale_fixing_image_id
+                << " is not a variable pose of this problem; the scale is not fixed by it";
+  }
+
+  // Intrinsics: one block per camera; fixed entries through a subset manifold.
+  std::vector<int> constant_intrinsics;
+  if (!options.refine_focal) constant_intrinsics.push_back(kIntrinsicsFocal);
+  if (!options.refine_principal_point) {
+    constant_intrinsics.push_back(kIntrinsicsCx);
+    constant_intrinsics.push_back(kIntrinsicsCy);
+  }
+  if (!options.refine_k1) constant_intrinsics.push_back(kIntrinsicsK1);
+  if (!options.refine_k2) constant_intrinsics.push_back(kIntrinsicsK2);
+  for (auto& [camera_id, block] : intrinsics) {
+    if (constant_cameras.contains(camera_id) ||
+        constant_intrinsics.size() == static_cast<std::size_t>(kNumIntrinsics)) {
+      problem.SetParameterBlockConstant(block.data());
+    } else if (!constant_intrinsics.empty()) {
+      problem.SetManifold(block.data(),
+                          new ceres::SubsetManifold(kNumIntrinsics, constant_intrinsics));
+    }
+  }
+
+  // Schur ordering: eliminate the points first (group 0), then solve for cameras.
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (auto& [point_id, xyz] : points) ordering->AddElementToGroup(xyz.data(), 0);
+  for (auto& [image_id, pose] : poses) {
+    ordering->AddElementToGroup(pose.rotation.data(), 1);
+    ordering->AddElementToGroup(pose.translation.data(), 1);
+  }
+  for (auto& [camera_id, block] : intrinsics) ordering->AddElementToGroup(block.data(), 1);
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_ordering = ordering;
+  ChooseLinearSolver(options, summary.num_variable_images, &solver_options);
+  solver_options.max_num_iterations = options.max_num_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.max_solver_time_in_seconds = options.max_solver_time_seconds;
+  solver_options.num_threads = EffectiveNumThreads(options.num_threads);
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  CancelAndLogCallback callback(cancel, "BA");
+  solver_options.callbacks.push_back(&callback);  // Not owned by Ceres.
+
+  ceres::Solver::Summary ceres_summary;
+  ceres::Solve(solver_options, &problem, &ceres_summary);
+  // Cancelled: Ceres did not update the copies and nothing is written back.
+  if (callback.cancelled()) {
+    LOG_DEBUG << "BA cancelled after " << ceres_summary.iterations.size() << " iterations";
+    throw CancelledError();
+  }
+
+  LOG_DEBUG << ceres_summary.FullReport();
+  summary.termination = TerminationName(ceres_summary.termination_type);
+  summary.linear_solver = ceres::LinearSolverTypeToString(ceres_summary.linear_solver_type_used);
+  summary.initial_cost = ceres_summary.initial_cost;
+  summary.final_cost = ceres_summary.final_cost;
+  summary.num_iterations =
+      std::max(0, ceres_summary.num_successful_steps + ceres_summary.num_unsuccessful_steps);
+  if (!ceres_summary.IsSolutionUsable()) {
+    summary.success = false;
+    summary.message = "solver failed: " + ceres_summary.message;
+    summary.final_rms_px = summary.initial_rms_px;
+    summary.time_seconds = timer.ElapsedSeconds();
+    LOG_WARNING << summary.BriefReport();
+    return summary;
+  }
+
+  // Write back what varied.
+  for (const auto& [image_id, pose] : poses) {
+    if (!pose.constant) PoseBlockToRigid(pose, &rec.images.at(image_id).cam_from_world);
+  }
+  for (const auto& [camera_id, block] : intrinsics) {
+    if (!problem.IsParameterBlockConstant(block.data())) {
+      IntrinsicsToCamera(block, &rec.cameras.at(camera_id));
+    }
+  }
+  for (const auto& [point_id, xyz] : points) {
+    rec.points.at(point_id).xyz_in_world = Eigen::Map<const Eigen::Vector3d>(xyz.data());
+  }
+
+  summary.final_rms_px = RmsReprojectionError(rec, used);
+  summary.success = true;
+  summary.message = ceres_summary.message;
+  summary.time_seconds = timer.ElapsedSeconds();
+  LOG_DEBUG << summary.BriefReport();
+  return summary;
+}
+
+BundleAdjustmentSummary RefinePose(const PoseRefinementOptions& options,
+                                   const Camera& camera,
+                                   const std::vector<Eigen::Vector2d>& points2D,
+                                   const std::vector<Eigen::Vector3d>& points3D,
+                                   Rigid3d* cam_from_world) {
+  THROW_CHECK_NOTNULL(cam_from_world);
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  THROW_CHECK_EQ(points2D.size(), points3D.size());
+  const Timer timer;
+  BundleAdjustmentSummary summary;
+  summary.num_images = 1;
+  summary.num_variable_images = 1;
+  summary.num_cameras = 1;
+
+  std::vector<std::size_t> used;
+  for (std::size_t i = 0; i < points3D.size(); ++i) {
+    if ((*cam_from_world * points3D[i]).z() > 0.0) {
+      used.push_back(i);
+    } else {
+      ++summary.num_skipped_observations;
+    }
+  }
+  summary.num_points = summary.num_observations = static_cast<int>(used.size());
+  const auto rms = [&](const Rigid3d& pose) {
+    double sum = 0.0;
+    for (std::size_t i : used) {
+      const auto pixel = camera.ImgFromCam(pose * points3D[i]);
+      const double e =
+          pixel ? (*pixel - points2D[i]).norm() : std::numeric_limits<double>::infinity();
+      sum += e * e;
+    }
+    return used.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(used.size()));
+  };
+  if (used.size() < 3) {
+    summary.message = "pose refinement needs at least 3 points in front of the camera, got " +
+                      std::to_string(used.size());
+    summary.time_seconds = timer.ElapsedSeconds();
+    return summary;
+  }
+  summary.initial_rms_px = rms(*cam_from_world);
+
+  PoseBlock pose = PoseBlockFromRigid(*cam_from_world);
+  const Eigen::Matrix<double, kNumIntrinsics, 1> intrinsics(
+      Eigen::Map<const Eigen::Matrix<double, kNumIntrinsics, 1>>(
+          IntrinsicsFromCamera(camera).data()));
+  const std::unique_ptr<ceres::LossFunction> loss = CreateLoss(options.loss, options.loss_scale);
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  for (std::size_t i : used) {
+    problem.AddResidualBlock(
+        PoseOnlyReprojectionError::Create(points2D[i], points3D[i], intrinsics), loss.get(),
+        pose.rotation.data(), pose.translation.data());
+  }
+  problem.SetManifold(pose.rotation.data(), new ceres::EigenQuaternionManifold);
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.max_num_iterations = options.max_num_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.num_threads = 1;  // 7 unknowns: threads would cost more than they save.
+  solver_options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary ceres_summary;
+  ceres::Solve(solver_options, &problem, &ceres_summary);
+
+  summary.termination = TerminationName(ceres_summary.termination_type);
+  summary.linear_solver = ceres::LinearSolverTypeToString(ceres_summary.linear_solver_type_used);
+  summary.initial_cost = ceres_summary.initial_cost;
+  summary.final_cost = ceres_summary.final_cost;
+  summary.num_iterations =
+      std::max(0, ceres_summary.num_successful_steps + ceres_summary.num_unsuccessful_steps);
+  summary.message = ceres_summary.message;
+  if (ceres_summary.IsSolutionUsable()) {
+    PoseBlockToRigid(pose, cam_from_world);
+    summary.success = true;
+  } else {
+    summary.message = "solver failed: " + ceres_summary.message;
+  }
+  summary.final_rms_px = rms(*cam_from_world);
+  summary.time_seconds = timer.ElapsedSeconds();
+  return summary;
+}
+
+}  // namespace reconduit

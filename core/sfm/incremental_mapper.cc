@@ -1,0 +1,618 @@
+#include "core/sfm/incremental_mapper.h"
+
+#include "core/estimators/triangulation.h"
+#include "core/sfm/bundle_adjustment.h"
+#include "core/util/logging.h"
+#include "core/util/timer.h"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+namespace reconduit {
+namespace {
+
+constexpr std::uint64_t kSeed = 0x5f3759df;
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto middle = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+class Mapper {
+ public:
+  Mapper(const MapperInput& input,
+         const IncrementalMapperOptions& options,
+         Progress& progress,
+         const CancelToken& cancel,
+         MapperSummary* summary)
+      : input_(input), options_(options), progress_(progress), cancel_(cancel), summary_(summary) {
+    for (const auto& [id, image] : input.images) {
+      track_of_[id].assign(image.keypoints.size(), -1);
+    }
+    for (int t = 0; t < static_cast<int>(input.tracks.size()); ++t) {
+      for (const Observation& o : input.tracks[t].observations) {
+        auto it = track_of_.find(o.image_id);
+        THROW_CHECK(it != track_of_.end()) << "track observes unknown image " << o.image_id;
+        THROW_CHECK(o.keypoint >= 0 && o.keypoint < static_cast<int>(it->second.size()));
+        it->second[o.keypoint] = t;
+      }
+    }
+  }
+
+  std::vector<Reconstruction> Run() {
+    std::vector<Reconstruction> models;
+    progress_.Restart(input_.images.size(), "registering photos");
+    while (true) {
+      cancel_.ThrowIfCancelled();
+      Reconstruction model;
+      if (!Initialize(&model)) break;
+      Grow(&model);
+      Finish(&model);
+      for (const auto& [id, image] : model.images) used_.insert(id);
+      if (static_cast<int>(model.images.size()) >= options_.min_model_images) {
+        Note("model " + std::to_string(models.size() + 1) + ": " +
+             std::to_string(model.images.size()) + " photos, " +
+             std::to_string(model.points.size()) + " points, mean reprojection error " +
+             std::to_string(model.MeanReprojectionError()) + " px");
+        models.push_back(std::move(model));
+      }
+    }
+    std::stable_sort(models.begin(), models.end(),
+                     [](const Reconstruction& a, const Reconstruction& b) {
+                       return a.images.size() > b.images.size();
+                     });
+    if (summary_ != nullptr) {
+      summary_->num_models = static_cast<int>(models.size());
+      summary_->num_images = static_cast<int>(input_.images.size());
+      summary_->num_registered = 0;
+      summary_->num_points = 0;
+      double error_sum = 0.0;
+      std::size_t observations = 0;
+      for (const Reconstruction& m : models) {
+        summary_->num_registered += static_cast<int>(m.images.size());
+        summary_->num_points += static_cast<int>(m.points.size());
+        error_sum += m.MeanReprojectionError() * m.NumObservations();
+        observations += m.NumObservations();
+      }
+      summary_->mean_reprojection_error_px = observations ? error_sum / observations : 0.0;
+    }
+    return models;
+  }
+
+ private:
+  void Note(const std::string& line) {
+    LOG_INFO << "sfm: " << line;
+    if (summary_ != nullptr) summary_->log.push_back(line);
+  }
+
+  // Undistorted normalised coordinates of a keypoint; nullopt outside the invertible range.
+  std::optional<Eigen::Vector2d> Normalized(const Camera& camera,
+                                            const Eigen::Vector2d& pixel) const {
+    const auto ray = camera.CamFromImg(pixel);
+    if (!ray) return std::nullopt;
+    return ray->head<2>();
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // Initial pair.
+
+  bool Initialize(Reconstruction* model) {
+    std::vector<const MapperPair*> candidates;
+    for (const MapperPair& pair : input_.pairs) {
+      if (!pair.epipolar || static_cast<int>(pair.matches.size()) < options_.min_initial_inliers)
+        continue;
+      if (used_.count(pair.image1) || used_.count(pair.image2)) continue;
+      if (tried_initial_.count({pair.image1, pair.image2})) continue;
+      candidates.push_back(&pair);
+    }
+    auto score = [](const MapperPair* p) {
+      const double h_share = p->num_inliers_F > 0
+                                 ? std::clamp(double(p->num_inliers_H) / p->num_inliers_F, 0.0, 1.0)
+                                 : 1.0;
+      return p->matches.size() * (1.0 - 0.8 * h_share);
+    };
+    std::stable_sort(candidates.begin(), candidates.end(),
+                     [&](const MapperPair* a, const MapperPair* b) { return score(a) > score(b); });
+    const int trials = std::min<int>(candidates.size(), options_.max_initial_pair_trials);
+    for (int k = 0; k < trials; ++k) {
+      cancel_.ThrowIfCancelled();
+      const MapperPair& pair = *candidates[k];
+      tried_initial_.insert({pair.image1, pair.image2});
+      std::string why;
+      if (TryInitialPair(pair, model, &why)) {
+        Note("initial pair " + input_.images.at(pair.image1).name + " + " +
+             input_.images.at(pair.image2).name + ": " + why);
+        return true;
+      }
+      LOG_DEBUG << "sfm: initial pair " << pair.image1 << "-" << pair.image2
+                << " rejected: " << why;
+    }
+    return false;
+  }
+
+  bool TryInitialPair(const MapperPair& pair, Reconstruction* model, std::string* why) {
+    const MapperImage& image1 = input_.images.at(pair.image1);
+    const MapperImage& image2 = input_.images.at(pair.image2);
+    const Camera& camera1 = input_.cameras.at(image1.camera_id);
+    const Camera& camera2 = input_.cameras.at(image2.camera_id);
+
+    std::vector<cv::Point2d> p1, p2;
+    std::vector<const FeatureMatch*> used;
+    for (const FeatureMatch& m : pair.matches) {
+      const auto a = Normalized(camera1, image1.keypoints[m.index1]);
+      const auto b = Normalized(camera2, image2.keypoints[m.index2]);
+      if (!a || !b) continue;
+      p1.emplace_back(a->x(), a->y());
+      p2.emplace_back(b->x(), b->y());
+      used.push_back(&m);
+    }
+    if (p1.size() < 8) {
+      *why = "too few matches";
+      return false;
+    }
+    // Threshold in normalised units: pixels over the (mean) focal length.
+    const double threshold = 1.5 / (0.5 * (camera1.focal + camera2.focal));
+    cv::theRNG().state = kSeed;
+    cv::Mat inlier_mask;
+    const cv::Mat e = cv::findEssentialMat(p1, p2, 1.0, cv::Point2d(0, 0), cv::RANSAC, 0.9999,
+                                           threshold, inlier_mask);
+    if (e.rows != 3 || e.cols != 3) {
+      *why = "no essential matrix";
+      return false;
+    }
+    cv::Mat r_cv, t_cv;
+    const int in_front =
+        cv::recoverPose(e, p1, p2, r_cv, t_cv, 1.0, cv::Point2d(0, 0), inlier_mask);
+    if (in_front < options_.min_initial_inliers / 2) {
+      *why = "only " + std::to_string(in_front) + " points in front of both cameras";
+      return false;
+    }
+    Eigen::Matrix3d r;
+    Eigen::Vector3d t;
+    cv::cv2eigen(r_cv, r);
+    cv::cv2eigen(t_cv, t);
+
+    Reconstruction candidate;
+    candidate.cameras[image1.camera_id] = camera1;
+    candidate.cameras[image2.camera_id] = camera2;
+    AddImage(&candidate, pair.image1, Rigid3d());
+    AddImage(&candidate, pair.image2, Rigid3d(r, t));
+
+    std::vector<double> angles;
+    for (std::size_t i = 0; i < used.size(); ++i) {
+      if (!inlier_mask.at<std::uint8_t>(static_cast<int>(i))) continue;
+      const FeatureMatch& m = *used[i];
+      const int track = track_of_.at(pair.image1)[m.index1];
+      if (track < 0 || track_of_.at(pair.image2)[m.index2] != track) continue;  // Inconsistent.
+      if (track_point_.count(track)) continue;
+
+      const std::vector<Observation> obs = {{pair.image1, m.index1}, {pair.image2, m.index2}};
+      if (auto id = TriangulateObservations(&candidate, obs, track)) {
+        angles.push_back(MaxAngle(candidate, candidate.points.at(*id)));
+      }
+    }
+
+    const double median_angle = Median(angles);
+    std::ostringstream s;
+    s << angles.size() << " points, median triangulation angle " << median_angle << " deg";
+    *why = s.str();
+    if (static_cast<int>(angles.size()) < std::max(30, options_.min_initial_inliers / 2) ||
+        median_angle < options_.min_initial_angle_deg) {
+      ForgetTrackPoints(candidate);
+      return false;
+    }
+
+    BundleAdjustmentOptions ba = BaseBundleOptions();
+    ba.constant_pose_image_ids = {pair.image1};
+    ba.scale_fixing_image_id = pair.image2;
+    ba.scale_fixing_translation_index = LargestComponent(t);
+    ba.refine_focal = ba.refine_k1 = ba.refine_k2 = false;
+    ba.loss = BundleAdjustmentLoss::kCauchy;
+    BundleAdjust(ba, cancel_, &candidate);
+    FilterPoints(&candidate, {pair.image1, pair.image2});
+    if (static_cast<int>(candidate.points.size()) < 30) {
+      *why += "; too few points survive bundle adjustment";
+      ForgetTrackPoints(candidate);
+      return false;
+    }
+    init_image1_ = pair.image1;
+    init_image2_ = pair.image2;
+    *model = std::move(candidate);
+    last_global_size_ = 2;
+    progress_.Advance(2);
+    return true;
+  }
+
+  static int LargestComponent(const Eigen::Vector3d& v) {
+    int index = 0;
+    v.cwiseAbs().maxCoeff(&index);
+    return index;
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // Growing the model.
+
+  void Grow(Reconstruction* model) {
+    std::set<int> failed;  // Photos that failed since the model last changed.
+    while (true) {
+      cancel_.ThrowIfCancelled();
+      std::vector<std::pair<int, int>> candidates;  // (visible points, image)
+      for (const auto& [id, image] : input_.images) {
+        if (model->images.count(id) || used_.count(id) || failed.count(id)) continue;
+        int visible = 0;
+        for (int track : track_of_.at(id)) visible += track >= 0 && track_point_.count(track);
+        if (visible >= options_.min_registration_points) candidates.emplace_back(visible, id);
+      }
+      if (candidates.empty()) return;
+      std::stable_sort(candidates.begin(), candidates.end(),
+                       [](const auto& a, const auto& b) { return a.first > b.first; });
+      bool registered = false;
+      for (const auto& [visible, id] : candidates) {
+        std::string why;
+        if (TryRegister(model, id, &why)) {
+          registered = true;
+          failed.clear();
+          LOG_INFO << "sfm: registered " << input_.images.at(id).name << " (" << why << "), "
+                   << model->images.size() << " photos, " << model->points.size() << " points";
+          progress_.Advance();
+          AfterRegistration(model, id);
+          break;
+        }
+        LOG_DEBUG << "sfm: cannot register " << input_.images.at(id).name << ": " << why;
+        failed.insert(id);
+      }
+      if (!registered) return;
+    }
+  }
+
+  bool TryRegister(Reconstruction* model, int image_id, std::string* why) {
+    const MapperImage& image = input_.images.at(image_id);
+    if (!model->cameras.count(image.camera_id)) {
+      model->cameras[image.camera_id] = input_.cameras.at(image.camera_id);
+    }
+    const Camera& camera = model->cameras.at(image.camera_id);
+    std::vector<cv::Point3d> object;
+    std::vector<cv::Point2d> normalized;
+    std::vector<int> keypoints;
+    const std::vector<int>& tracks = track_of_.at(image_id);
+    for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
+      if (tracks[kp] < 0) continue;
+      auto it = track_point_.find(tracks[kp]);
+      if (it == track_point_.end()) continue;
+      const auto n = Normalized(camera, image.keypoints[kp]);
+      if (!n) continue;
+      const Eigen::Vector3d& x = model->points.at(it->second).xyz_in_world;
+      object.emplace_back(x.x(), x.y(), x.z());
+      normalized.emplace_back(n->x(), n->y());
+      keypoints.push_back(kp);
+    }
+    if (static_cast<int>(object.size()) < options_.min_registration_points) {
+      *why = std::to_string(object.size()) + " correspondences";
+      return false;
+    }
+    cv::theRNG().state = kSeed + image_id;
+    cv::Mat rvec, tvec;
+    std::vector<int> inliers;
+    const bool found = cv::solvePnPRansac(
+        object, normalized, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec, false, 2000,
+        static_cast<float>(options_.pnp_max_error_px / camera.focal), 0.9999, inliers,
+        cv::SOLVEPNP_AP3P);
+    if (!found || static_cast<int>(inliers.size()) < options_.min_registration_points ||
+        inliers.size() < options_.min_pnp_inlier_ratio * object.size()) {
+      *why = std::to_string(inliers.size()) + " PnP inliers of " + std::to_string(object.size());
+      return false;
+    }
+    cv::Mat r_cv;
+    cv::Rodrigues(rvec, r_cv);
+    Eigen::Matrix3d r;
+    Eigen::Vector3d t;
+    cv::cv2eigen(r_cv, r);
+    cv::cv2eigen(tvec, t);
+    Rigid3d pose(r, t);
+
+    std::vector<Eigen::Vector2d> points2d;
+    std::vector<Eigen::Vector3d> points3d;
+    for (int i : inliers) {
+      points2d.push_back(image.keypoints[keypoints[i]]);
+      points3d.emplace_back(object[i].x, object[i].y, object[i].z);
+    }
+    PoseRefinementOptions refine;
+    RefinePose(refine, camera, points2d, points3d, &pose);
+
+    AddImage(model, image_id, pose);
+    int added = 0;
+    for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
+      if (tracks[kp] < 0) continue;
+      auto it = track_point_.find(tracks[kp]);
+      if (it == track_point_.end()) continue;
+      Point3D& point = model->points.at(it->second);
+      if (!HasPositiveDepth(pose, point.xyz_in_world)) continue;
+      const auto pixel = camera.ImgFromCam(pose * point.xyz_in_world);
+      if (!pixel || (*pixel - image.keypoints[kp]).norm() > options_.max_reprojection_error_px)
+        continue;
+      model->AddObservation(it->second, {image_id, kp});
+      ++added;
+    }
+    *why = std::to_string(inliers.size()) + " PnP inliers of " + std::to_string(object.size());
+    return added >= options_.min_registration_points / 2;
+  }
+
+  void AfterRegistration(Reconstruction* model, int image_id) {
+    TriangulateImage(model, image_id);
+    // Local adjustment: the new photo and the photos that share most points with it.
+    std::map<int, int> shared;
+    const RegisteredImage& image = model->images.at(image_id);
+    for (int point_id : image.point_for_keypoint) {
+      if (point_id == kInvalidId) continue;
+      for (const Observation& o : model->points.at(point_id).observations) {
+        if (o.image_id != image_id) ++shared[o.image_id];
+      }
+    }
+    std::vector<std::pair<int, int>> ranked;
+    for (const auto& [id, count] : shared) ranked.emplace_back(count, id);
+    std::sort(ranked.rbegin(), ranked.rend());
+    std::vector<int> variable = {image_id};
+    for (const auto& [count, id] : ranked) {
+      if (static_cast<int>(variable.size()) >= options_.local_ba_num_images) break;
+      if (id != init_image1_) variable.push_back(id);
+    }
+    BundleAdjustmentOptions ba = BaseBundleOptions();
+    ba.variable_pose_image_ids = variable;
+    ba.constant_pose_image_ids = {init_image1_};
+    ba.refine_focal = ba.refine_k1 = ba.refine_k2 = false;
+    ba.loss = BundleAdjustmentLoss::kCauchy;
+    ba.max_num_iterations = 25;
+    BundleAdjust(ba, cancel_, model);
+    FilterPoints(model, std::set<int>(variable.begin(), variable.end()));
+
+    if (model->images.size() >= global_ba_growth_threshold()) {
+      GlobalAdjust(model, /*final=*/false);
+    }
+  }
+
+  std::size_t global_ba_growth_threshold() const {
+    return static_cast<std::size_t>(std::ceil(last_global_size_ * options_.global_ba_growth));
+  }
+
+  void GlobalAdjust(Reconstruction* model, bool final) {
+    BundleAdjustmentOptions ba = BaseBundleOptions();
+    ba.constant_pose_image_ids = {init_image1_};
+    ba.scale_fixing_image_id = init_image2_;
+    ba.scale_fixing_translation_index =
+        LargestComponent(model->images.at(init_image2_).cam_from_world.translation);
+    const bool intrinsics =
+        static_cast<int>(model->images.size()) >= options_.min_images_for_intrinsics;
+    ba.refine_focal = options_.refine_focal && intrinsics;
+    ba.refine_k1 = ba.refine_k2 = options_.refine_distortion && intrinsics;
+    ba.refine_principal_point = options_.refine_principal_point && intrinsics && final;
+    ba.loss = final ? BundleAdjustmentLoss::kTrivial : BundleAdjustmentLoss::kCauchy;
+    const BundleAdjustmentSummary summary = BundleAdjust(ba, cancel_, model);
+    LOG_INFO << "sfm: global adjustment of " << model->images.size()
+             << " photos: " << summary.BriefReport();
+    std::set<int> all;
+    for (const auto& [id, image] : model->images) all.insert(id);
+    FilterPoints(model, all);
+    last_global_size_ = model->images.size();
+  }
+
+  void Finish(Reconstruction* model) {
+    // Tracks that could not be triangulated earlier may be now, with all photos in place.
+    for (const auto& [id, image] : model->images) TriangulateImage(model, id);
+    GlobalAdjust(model, /*final=*/false);
+    GlobalAdjust(model, /*final=*/true);
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // Triangulation and filtering.
+
+  void AddImage(Reconstruction* model, int image_id, const Rigid3d& pose) {
+    const MapperImage& source = input_.images.at(image_id);
+    RegisteredImage& image = model->images[image_id];
+    image.image_id = image_id;
+    image.camera_id = source.camera_id;
+    image.name = source.name;
+    image.cam_from_world = pose;
+    image.keypoints = source.keypoints;
+    image.point_for_keypoint.assign(source.keypoints.size(), kInvalidId);
+  }
+
+  // Triangulates every track this photo observes that has no point yet.
+  void TriangulateImage(Reconstruction* model, int image_id) {
+    const std::vector<int>& tracks = track_of_.at(image_id);
+    for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
+      const int track = tracks[kp];
+      if (track < 0 || track_point_.count(track)) continue;
+      std::vector<Observation> obs;
+      for (const Observation& o : input_.tracks[track].observations) {
+        if (model->images.count(o.image_id)) obs.push_back(o);
+      }
+      if (obs.size() >= 2) TriangulateObservations(model, obs, track);
+    }
+  }
+
+  // Triangulates `observations` (registered photos) into a new point for `track`, keeping the
+  // observations that pass the depth and reprojection checks; returns the point id.
+  std::optional<int> TriangulateObservations(Reconstruction* model,
+                                             const std::vector<Observation>& observations,
+                                             int track) {
+    std::vector<Rigid3d> poses;
+    std::vector<Eigen::Vector2d> points;
+    std::vector<Observation> usable;
+    for (const Observation& o : observations) {
+      const RegisteredImage& image = model->images.at(o.image_id);
+      if (image.point_for_keypoint[o.keypoint] != kInvalidId) continue;
+      const auto n = Normalized(model->cameras.at(image.camera_id), image.keypoints[o.keypoint]);
+      if (!n) continue;
+      poses.push_back(image.cam_from_world);
+      points.push_back(*n);
+      usable.push_back(o);
+    }
+    if (usable.size() < 2) return std::nullopt;
+    const auto x = TriangulatePoint(poses, points);
+    if (!x) return std::nullopt;
+    std::vector<Observation> kept;
+    for (const Observation& o : usable) {
+      const RegisteredImage& image = model->images.at(o.image_id);
+      if (!HasPositiveDepth(image.cam_from_world, *x)) continue;
+      const auto pixel = model->cameras.at(image.camera_id).ImgFromCam(image.cam_from_world * *x);
+      if (!pixel ||
+          (*pixel - image.keypoints[o.keypoint]).norm() > options_.max_reprojection_error_px) {
+        continue;
+      }
+      kept.push_back(o);
+    }
+    if (kept.size() < 2) return std::nullopt;
+    Point3D probe;
+    probe.xyz_in_world = *x;
+    probe.observations = kept;
+    if (MaxAngle(*model, probe) < options_.min_triangulation_angle_deg) return std::nullopt;
+    const int id = model->AddPoint(*x, kept);
+    track_point_[track] = id;
+    point_track_[id] = track;
+    return id;
+  }
+
+  // Largest triangulation angle over the point's observations, in degrees.
+  double MaxAngle(const Reconstruction& model, const Point3D& point) const {
+    double best = 0.0;
+    for (std::size_t i = 0; i < point.observations.size(); ++i) {
+      const Eigen::Vector3d ci =
+          model.images.at(point.observations[i].image_id).cam_from_world.CenterInWorld();
+      for (std::size_t j = i + 1; j < point.observations.size(); ++j) {
+        const Eigen::Vector3d cj =
+            model.images.at(point.observations[j].image_id).cam_from_world.CenterInWorld();
+        best = std::max(best, CalculateTriangulationAngle(ci, cj, point.xyz_in_world));  // Radians.
+      }
+    }
+    return best * 180.0 / M_PI;
+  }
+
+  // Removes bad observations and points among those seen by `images`.
+  void FilterPoints(Reconstruction* model, const std::set<int>& images) {
+    std::set<int> candidates;
+    for (int id : images) {
+      auto it = model->images.find(id);
+      if (it == model->images.end()) continue;
+      for (int point_id : it->second.point_for_keypoint) {
+        if (point_id != kInvalidId) candidates.insert(point_id);
+      }
+    }
+    for (int point_id : candidates) {
+      auto it = model->points.find(point_id);
+      if (it == model->points.end()) continue;
+      const std::vector<Observation> observations = it->second.observations;
+      for (const Observation& o : observations) {
+        const RegisteredImage& image = model->images.at(o.image_id);
+        const bool bad =
+            !HasPositiveDepth(image.cam_from_world, it->second.xyz_in_world) ||
+            model->ReprojectionError(it->second, o) > options_.max_reprojection_error_px;
+        if (bad) {
+          model->DeleteObservation(point_id, o);
+          if (!model->points.count(point_id)) break;
+        }
+      }
+      auto still = model->points.find(point_id);
+      if (still != model->points.end() &&
+          MaxAngle(*model, still->second) < options_.min_triangulation_angle_deg) {
+        model->DeletePoint(point_id);
+      }
+      if (!model->points.count(point_id)) {
+        // The track may be triangulated again later, from better-posed photos.
+        auto track = point_track_.find(point_id);
+        if (track != point_track_.end()) {
+          track_point_.erase(track->second);
+          point_track_.erase(track);
+        }
+      }
+    }
+  }
+
+  void ForgetTrackPoints(const Reconstruction& model) {
+    for (const auto& [id, point] : model.points) {
+      auto track = point_track_.find(id);
+      if (track != point_track_.end()) {
+        track_point_.erase(track->second);
+        point_track_.erase(track);
+      }
+    }
+  }
+
+  BundleAdjustmentOptions BaseBundleOptions() const {
+    BundleAdjustmentOptions ba;
+    ba.num_threads = options_.num_threads > 0 ? options_.num_threads : -1;
+    ba.loss_scale = 1.0;
+    return ba;
+  }
+
+  const MapperInput& input_;
+  const IncrementalMapperOptions& options_;
+  Progress& progress_;
+  const CancelToken& cancel_;
+  MapperSummary* summary_;
+
+  std::map<int, std::vector<int>> track_of_;  // image id -> track per keypoint (-1: none)
+  std::map<int, int> track_point_;            // track -> point id in the current model
+  std::map<int, int> point_track_;            // point id -> track
+  std::set<int> used_;                        // Photos registered in an earlier model.
+  std::set<std::pair<int, int>> tried_initial_;
+  int init_image1_ = kInvalidId;
+  int init_image2_ = kInvalidId;
+  std::size_t last_global_size_ = 0;
+};
+
+}  // namespace
+
+bool IncrementalMapperOptions::Check(std::string* error) const {
+  std::ostringstream m;
+  if (min_initial_inliers < 8) {
+    m << "min_initial_inliers must be at least 8, got " << min_initial_inliers;
+  } else if (!(min_initial_angle_deg >= 0 && min_initial_angle_deg < 90)) {
+    m << "min_initial_angle_deg must be in [0, 90), got " << min_initial_angle_deg;
+  } else if (max_initial_pair_trials < 1) {
+    m << "max_initial_pair_trials must be at least 1, got " << max_initial_pair_trials;
+  } else if (!(max_reprojection_error_px > 0)) {
+    m << "max_reprojection_error_px must be positive, got " << max_reprojection_error_px;
+  } else if (!(min_triangulation_angle_deg >= 0 && min_triangulation_angle_deg < 90)) {
+    m << "min_triangulation_angle_deg must be in [0, 90), got " << min_triangulation_angle_deg;
+  } else if (min_registration_points < 4) {
+    m << "min_registration_points must be at least 4, got " << min_registration_points;
+  } else if (!(pnp_max_error_px > 0)) {
+    m << "pnp_max_error_px must be positive, got " << pnp_max_error_px;
+  } else if (!(min_pnp_inlier_ratio >= 0 && min_pnp_inlier_ratio <= 1)) {
+    m << "min_pnp_inlier_ratio must be in [0, 1], got " << min_pnp_inlier_ratio;
+  } else if (local_ba_num_images < 1) {
+    m << "local_ba_num_images must be at least 1, got " << local_ba_num_images;
+  } else if (!(global_ba_growth > 1.0)) {
+    m << "global_ba_growth must be greater than 1, got " << global_ba_growth;
+  } else if (min_model_images < 2) {
+    m << "min_model_images must be at least 2, got " << min_model_images;
+  } else {
+    return true;
+  }
+  if (error != nullptr) *error = m.str();
+  return false;
+}
+
+std::vector<Reconstruction> ReconstructIncrementally(const MapperInput& input,
+                                                     const IncrementalMapperOptions& options,
+                                                     Progress& progress,
+                                                     const CancelToken& cancel,
+                                                     MapperSummary* summary) {
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  const Timer timer;
+  Mapper mapper(input, options, progress, cancel, summary);
+  std::vector<Reconstruction> models = mapper.Run();
+  LOG_INFO << "sfm: " << models.size() << " model(s) in " << timer.ElapsedSeconds() << " s";
+  return models;
+}
+
+}  // namespace reconduit

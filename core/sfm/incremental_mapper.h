@@ -1,0 +1,114 @@
+// Incremental structure and motion: from verified pairwise matches and tracks to one or more
+// reconstructions (cameras, poses, 3-D points).
+//
+// The classic loop of Bundler and COLMAP (Schönberger & Frahm 2016, "Structure-from-Motion
+// Revisited"), kept small:
+//  1. Initial pair. Candidates are pairs with epipolar geometry (GRIC preferred F over H:
+//     planar and rotation-only pairs cannot fix the structure), ranked by inliers discounted
+//     by the share a homography also explains (a proxy for parallax). For each, the essential
+//     matrix from undistorted normalised points gives the relative pose; the pair is accepted
+//     when enough points triangulate in front of both cameras with small reprojection error
+//     and the median triangulation angle is large enough.
+//  2. Registration. The unregistered photo that sees most reconstructed points is posed by
+//     P3P in RANSAC (OpenCV's solvePnPRansac on normalised points) and refined (RefinePose).
+//  3. Triangulation of the tracks it shares with registered photos (DLT over all registered
+//     observations, with depth, reprojection and angle checks); observations of existing
+//     points are added when they reproject well.
+//  4. Local bundle adjustment around the new photo; global bundle adjustment whenever the
+//     model grew by `global_ba_growth`; intrinsics (focal, k1, k2) are refined in global
+//     adjustments once the model has `min_images_for_intrinsics` photos.
+//  5. Outlier filtering after each adjustment: observations reprojecting worse than
+//     `max_reprojection_error_px`, points seen under less than `min_triangulation_angle_deg`.
+// When no photo can be registered any more, the remaining tracks are triangulated again, a
+// final global adjustment refines everything, and — if photos are left — a new model starts
+// from the best remaining pair. Models are returned largest first.
+#ifndef RECONDUIT_CORE_SFM_INCREMENTAL_MAPPER_H_
+#define RECONDUIT_CORE_SFM_INCREMENTAL_MAPPER_H_
+
+#include "core/feature/matcher.h"
+#include "core/scene/reconstruction.h"
+#include "core/sfm/tracks.h"
+#include "core/util/cancel.h"
+#include "core/util/progress.h"
+
+#include <Eigen/Core>
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace reconduit {
+
+struct MapperImage {
+  std::string name;
+  int camera_id = kInvalidId;
+  std::vector<Eigen::Vector2d> keypoints;  // Original-image pixels.
+};
+
+struct MapperPair {
+  int image1 = kInvalidId;
+  int image2 = kInvalidId;
+  bool epipolar = false;  // GRIC chose F (a real baseline), not H.
+  int num_inliers_F = 0;
+  int num_inliers_H = 0;
+  std::vector<FeatureMatch> matches;  // Verified inliers.
+};
+
+struct MapperInput {
+  std::map<int, Camera> cameras;      // Initial intrinsics per camera id.
+  std::map<int, MapperImage> images;  // By image id.
+  std::vector<MapperPair> pairs;
+  std::vector<Track> tracks;
+};
+
+struct IncrementalMapperOptions {
+  // Initial pair: at least this many verified matches. [8, ...]
+  int min_initial_inliers = 50;
+  // Initial pair: median triangulation angle of its points, degrees. [0, 90)
+  double min_initial_angle_deg = 2.0;
+  // Initial pair: candidates tried per model. [1, ...]
+  int max_initial_pair_trials = 40;
+  // Observations reprojecting worse than this (pixels) are outliers. (0, ...)
+  double max_reprojection_error_px = 4.0;
+  // Points seen under a smaller angle (degrees) are not kept. [0, 90)
+  double min_triangulation_angle_deg = 1.5;
+  // A photo needs this many 2-D/3-D correspondences (and PnP inliers) to be registered. [4, ...]
+  int min_registration_points = 20;
+  // PnP RANSAC inlier threshold in pixels. (0, ...)
+  double pnp_max_error_px = 8.0;
+  // ... and this share of its correspondences must be inliers. [0, 1]
+  double min_pnp_inlier_ratio = 0.2;
+  // Local adjustment: the new photo and up to this many photos sharing most points with it.
+  int local_ba_num_images = 6;
+  // A global adjustment runs when the number of registered photos grew by this factor. > 1
+  double global_ba_growth = 1.3;
+  // Intrinsics refinement in global adjustments.
+  bool refine_focal = true;
+  bool refine_distortion = true;
+  bool refine_principal_point = false;
+  int min_images_for_intrinsics = 4;
+  // Models with fewer photos are dropped. [2, ...]
+  int min_model_images = 2;
+  int num_threads = 0;
+
+  bool Check(std::string* error) const;
+};
+
+struct MapperSummary {
+  int num_models = 0;
+  int num_registered = 0;
+  int num_images = 0;
+  int num_points = 0;
+  double mean_reprojection_error_px = 0.0;
+  std::vector<std::string> log;  // One line per notable event (initial pairs, failures).
+};
+
+std::vector<Reconstruction> ReconstructIncrementally(const MapperInput& input,
+                                                     const IncrementalMapperOptions& options,
+                                                     Progress& progress,
+                                                     const CancelToken& cancel,
+                                                     MapperSummary* summary = nullptr);
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_SFM_INCREMENTAL_MAPPER_H_
