@@ -1,11 +1,13 @@
 // reconduit-server: the HTTP front of the reconstruction service (DESIGN.md sections 1 and 3).
 //
 // Parses the configuration (flags, then RECONDUIT_* environment variables), prepares the data
-// folder, builds the route table (API routes from server/api, the web/ page as the fallback)
-// and runs the HTTP server until SIGINT or SIGTERM. Exit status: 0 after a graceful shutdown,
-// 1 when the server cannot start (port taken, data folder not writable), 2 for bad flags.
+// folder (opens <data>/reconduit.db, removes orphaned uploads, sweeps expired leases), builds
+// the route table (API routes from server/api, the web/ page as the fallback) and runs the HTTP
+// server until SIGINT or SIGTERM. Exit status: 0 after a graceful shutdown, 1 when the server
+// cannot start (port taken, data folder not writable, database unusable), 2 for bad flags.
 #include "core/util/logging.h"
 #include "server/api/api.h"
+#include "server/api/maintenance.h"
 #include "server/http/router.h"
 #include "server/http/server.h"
 #include "server/http/static_files.h"
@@ -17,6 +19,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -35,8 +38,10 @@ using reconduit::server::HttpServerOptions;
 
 struct Config {
   HttpServerOptions http;
+  reconduit::server::UploadLimits limits;
   fs::path data_dir = "data";
   fs::path web_dir = RECONDUIT_DEFAULT_WEB_DIR;
+  std::chrono::seconds lease_sweep_interval{30};
 };
 
 // "max-upload-bytes" <-> RECONDUIT_MAX_UPLOAD_BYTES.
@@ -57,6 +62,8 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
   std::int64_t body_timeout_s = 30;
   std::int64_t write_timeout_s = 30;
   std::int64_t shutdown_grace_s = 10;
+  std::int64_t lease_sweep_s = config->lease_sweep_interval.count();
+  reconduit::server::UploadLimits& limits = config->limits;
 
   po::options_description options(
       "Usage: reconduit-server [options]\n\n"
@@ -97,7 +104,21 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
       ("shutdown-grace", po::value(&shutdown_grace_s)->default_value(shutdown_grace_s),
        "Seconds in-flight requests may run after SIGINT/SIGTERM.")
       ("retry-after", po::value(&http.retry_after_seconds)->default_value(http.retry_after_seconds),
-       "Seconds sent in Retry-After when the server is full.");
+       "Seconds sent in Retry-After when the server is full.")
+      ("max-photos", po::value(&limits.max_photos)->default_value(limits.max_photos),
+       "Photos per job (image parts or zip entries); more are answered 413.")
+      ("max-pixels", po::value(&limits.max_pixels)->default_value(limits.max_pixels),
+       "Largest width*height of a photo, read from its header before decoding; larger\n"
+       "photos are rejected (listed with the reason).")
+      ("max-photo-bytes", po::value(&limits.max_photo_bytes)->default_value(limits.max_photo_bytes),
+       "Largest single photo in bytes; larger ones are answered 413.")
+      ("max-concurrent-uploads",
+       po::value(&limits.max_concurrent_uploads)->default_value(limits.max_concurrent_uploads),
+       "Uploads received at once; more are answered 429 with Retry-After.")
+      ("max-queued-jobs", po::value(&limits.max_queued_jobs)->default_value(limits.max_queued_jobs),
+       "Jobs waiting for a worker; new uploads are answered 503 with Retry-After when full.")
+      ("lease-sweep-interval", po::value(&lease_sweep_s)->default_value(lease_sweep_s),
+       "Seconds between sweeps that requeue jobs of workers that stopped heart-beating.");
   // clang-format on
 
   po::variables_map values;
@@ -132,10 +153,24 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
   http.server_name = std::string("reconduit/") + RECONDUIT_VERSION;
   config->data_dir = data_dir;
   config->web_dir = web_dir;
+  config->lease_sweep_interval = std::chrono::seconds(lease_sweep_s);
+  limits.max_upload_bytes = http.max_upload_bytes;
 
   std::string error;
   if (!http.Check(&error)) {
     std::cerr << "reconduit-server: invalid configuration: " << error << "\n";
+    return 2;
+  }
+  const char* bad_limit = limits.max_photos < 1        ? "max-photos must be >= 1"
+                          : limits.max_pixels < 1      ? "max-pixels must be >= 1"
+                          : limits.max_photo_bytes < 1 ? "max-photo-bytes must be >= 1"
+                          : limits.max_concurrent_uploads < 1
+                              ? "max-concurrent-uploads must be >= 1"
+                          : limits.max_queued_jobs < 1 ? "max-queued-jobs must be >= 1"
+                          : lease_sweep_s < 1          ? "lease-sweep-interval must be >= 1"
+                                                       : nullptr;
+  if (bad_limit != nullptr) {
+    std::cerr << "reconduit-server: invalid configuration: " << bad_limit << "\n";
     return 2;
   }
   return std::nullopt;
@@ -163,9 +198,32 @@ int main(int argc, char** argv) {
     LOG_WARNING << "web folder " << config.web_dir << " has no index.html: GET / will answer 404";
   }
 
+  // The job store and the data folder: orphans of a crash go before anything is served.
+  const reconduit::DataLayout layout(fs::absolute(config.data_dir));
+  reconduit::Result<std::unique_ptr<reconduit::JobStore>> store =
+      reconduit::OpenSqliteJobStore(layout.DatabasePath().string());
+  if (!store.ok()) {
+    std::cerr << "reconduit-server: cannot open the job database " << layout.DatabasePath() << ": "
+              << store.status().message() << "\n";
+    return 1;
+  }
+  reconduit::Result<StartupReport> startup = PrepareDataFolder(layout, store->get());
+  if (!startup.ok()) {
+    std::cerr << "reconduit-server: cannot prepare the data folder " << layout.root() << ": "
+              << startup.status().message() << "\n";
+    return 1;
+  }
+  LOG_INFO << "start-up: removed " << startup->removed_temp_entries << " orphaned upload(s) and "
+           << startup->removed_orphan_jobs << " orphaned job folder(s)";
+  LeaseSweeper sweeper(store->get(), config.lease_sweep_interval);
+
   ApiServices services;
-  services.data_dir = fs::absolute(config.data_dir);
+  services.data_dir = layout.root();
   services.retry_after_seconds = config.http.retry_after_seconds;
+  services.store = store->get();
+  services.limits = config.limits;
+  services.http_metrics = std::make_shared<HttpMetrics>();
+  config.http.metrics = services.http_metrics;
 
   Router router;
   AddApiRoutes(&router, &services);

@@ -12,6 +12,7 @@
 #include "core/pipeline/default_stages.h"
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
+#include "worker/benchmark.h"
 
 #include <algorithm>
 #include <csignal>
@@ -33,6 +34,8 @@ constexpr char kUsage[] =
     "  reconduit reconstruct <images_dir> <out_dir> [--until STAGE] [--options FILE]\n"
     "                        [--work DIR] [--threads N]\n"
     "  reconduit options\n"
+    "  reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE] [--options FILE]\n"
+    "                      [--work DIR] [--threads N]\n"
     "\n"
     "reconstruct  runs the pipeline on every file in <images_dir> (files that are not usable\n"
     "             photos are reported and skipped) and writes the results to <out_dir>.\n"
@@ -40,7 +43,12 @@ constexpr char kUsage[] =
     "  --options FILE  pipeline options as a JSON object (see `reconduit options`)\n"
     "  --work DIR      intermediate files (default <out_dir>.work); rerunning resumes there\n"
     "  --threads N     threads for parallel stages (default: all cores)\n"
-    "options      prints every pipeline option with its type, default, range and help.\n";
+    "options      prints every pipeline option with its type, default, range and help.\n"
+    "benchmark    runs the stages up to --until (default sparse) from scratch and prints "
+    "per-stage\n"
+    "             time and peak memory, counts, and with --gt (Strecha .camera folder or\n"
+    "             Middlebury *_par.txt) the camera accuracy; --colmap also runs COLMAP (CPU) on\n"
+    "             the same photos and prints the ratios.\n";
 
 CancelToken g_cancel;
 void OnSignal(int) { g_cancel.RequestCancel(); }
@@ -217,6 +225,7 @@ int main(int argc, char** argv) {
   args.erase(args.begin());
   try {
     if (command == "reconstruct") return Reconstruct(args);
+    if (command == "benchmark") return RunBenchmark(args);
     if (command == "options") {
       std::cout << DescribePipelineOptions().dump(2) << "\n";
       return 0;

@@ -5,6 +5,7 @@
 #include "core/pipeline/stages/matching_stage.h"
 #include "core/pipeline/stages/package_stage.h"
 #include "core/pipeline/stages/pairs_stage.h"
+#include "core/pipeline/stages/sparse_stage.h"
 
 #include <functional>
 #include <utility>
@@ -21,6 +22,7 @@ std::vector<std::pair<std::string, StageFactory>> WorkStages() {
       {"features", [] { return std::make_unique<FeaturesStage>(); }},
       {"pairs", [] { return std::make_unique<PairsStage>(); }},
       {"matching", [] { return std::make_unique<MatchingStage>(); }},
+      {"sparse", [] { return std::make_unique<SparseStage>(); }},
   };
 }
 

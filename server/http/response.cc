@@ -32,6 +32,16 @@ Response Response::File(std::filesystem::path path, std::string_view content_typ
   return response;
 }
 
+Response Response::Stream(StreamProducer producer,
+                          std::chrono::milliseconds poll_interval,
+                          std::string_view content_type) {
+  Response response(HttpStatus::ok);
+  response.SetHeader("Content-Type", content_type);
+  response.stream_producer_ = std::move(producer);
+  response.stream_poll_interval_ = poll_interval;
+  return response;
+}
+
 void Response::SetHeader(std::string_view name, std::string_view value) {
   for (auto& [key, existing] : headers_) {
     if (EqualsIgnoreCase(key, name)) {
@@ -163,7 +173,7 @@ std::string_view MimeTypeForPath(std::string_view path) {
     std::string_view extension;
     std::string_view type;
   };
-  static constexpr std::array<Entry, 24> kTypes = {{
+  static constexpr std::array<Entry, 30> kTypes = {{
       {".html", "text/html; charset=utf-8"},
       {".htm", "text/html; charset=utf-8"},
       {".css", "text/css; charset=utf-8"},
@@ -188,6 +198,12 @@ std::string_view MimeTypeForPath(std::string_view path) {
       {".ply", "application/octet-stream"},
       {".zip", "application/zip"},
       {".xml", "application/xml"},
+      {".ndjson", "application/x-ndjson"},
+      {".csv", "text/csv; charset=utf-8"},
+      {".out", "text/plain; charset=utf-8"},
+      {".obj", "model/obj"},
+      {".mtl", "model/mtl"},
+      {".bin", "application/octet-stream"},
   }};
   const std::size_t dot = path.rfind('.');
   if (dot != std::string_view::npos) {

@@ -19,8 +19,10 @@
 #include <boost/beast/http/status.hpp>
 #include <nlohmann/json_fwd.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -33,6 +35,22 @@ using HttpStatus = boost::beast::http::status;
 
 inline constexpr std::string_view kJsonContentType = "application/json";
 inline constexpr std::string_view kTextContentType = "text/plain; charset=utf-8";
+
+// A part of a file: `length` bytes starting at `offset`.
+struct FileSlice {
+  std::uint64_t offset = 0;
+  std::uint64_t length = 0;
+};
+
+// One step of a streamed response body (see Response::Stream).
+struct StreamStep {
+  // Bytes to send now; may be empty.
+  std::string data;
+  // True when the body is complete after `data`.
+  bool done = false;
+};
+// Produces the next piece of a streamed body. Called on an I/O thread: keep it short.
+using StreamProducer = std::function<StreamStep()>;
 
 class Response {
  public:
@@ -49,6 +67,14 @@ class Response {
   // The file is opened by the transport; if it cannot be opened then, the client gets a 404
   // JSON error instead. `content_type` defaults to the type guessed from the extension.
   static Response File(std::filesystem::path path, std::string_view content_type = {});
+  // A body produced while it is being sent, for Server-Sent Events: the transport writes the
+  // header (chunked transfer coding), then calls `producer` at once and again every
+  // `poll_interval` until a step says done, the client goes away or the server shuts down.
+  // Data is sent as soon as it is produced. An exception from the producer ends the body.
+  // HEAD requests get the header only.
+  static Response Stream(StreamProducer producer,
+                         std::chrono::milliseconds poll_interval,
+                         std::string_view content_type);
 
   HttpStatus status() const { return status_; }
   void set_status(HttpStatus status) { status_ = status; }
@@ -63,12 +89,23 @@ class Response {
   void set_body(std::string body) { body_ = std::move(body); }
   // Set for file responses; the string body is then unused.
   const std::optional<std::filesystem::path>& file() const { return file_; }
+  // For file responses: send only this part of the file (a 206 answer to a Range request; the
+  // handler sets the status and Content-Range). The slice must lie inside the file; if the
+  // file has shrunk by the time it is sent, the client gets a 404 JSON error instead.
+  void set_file_slice(FileSlice slice) { file_slice_ = slice; }
+  const std::optional<FileSlice>& file_slice() const { return file_slice_; }
+  // Set for streamed responses.
+  const StreamProducer& stream_producer() const { return stream_producer_; }
+  std::chrono::milliseconds stream_poll_interval() const { return stream_poll_interval_; }
 
  private:
   HttpStatus status_ = HttpStatus::ok;
   std::vector<std::pair<std::string, std::string>> headers_;
   std::string body_;
   std::optional<std::filesystem::path> file_;
+  std::optional<FileSlice> file_slice_;
+  StreamProducer stream_producer_;
+  std::chrono::milliseconds stream_poll_interval_{0};
 };
 
 // The stable error code for an HTTP status: 400 "bad_request", 401 "unauthorized",

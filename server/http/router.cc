@@ -12,6 +12,18 @@ bool IsParam(std::string_view segment) {
   return segment.size() >= 2 && segment.front() == '{' && segment.back() == '}';
 }
 
+// "{name...}": a parameter that takes the rest of the path.
+bool IsTailParam(std::string_view segment) {
+  return IsParam(segment) && segment.size() > 5 && segment.substr(segment.size() - 4) == "...}";
+}
+
+// The parameter name of "{name}" or "{name...}".
+std::string ParamName(std::string_view segment) {
+  std::string_view name = segment.substr(1, segment.size() - 2);
+  if (IsTailParam(segment)) name.remove_suffix(3);
+  return std::string(name);
+}
+
 std::vector<std::string> ParsePattern(std::string_view pattern) {
   THROW_CHECK(!pattern.empty() && pattern.front() == '/')
       << "route pattern must start with '/': " << pattern;
@@ -28,8 +40,12 @@ std::vector<std::string> ParsePattern(std::string_view pattern) {
                   segment.substr(1, segment.size() - 2).find_first_of("{}") ==
                       std::string_view::npos)
           << "malformed parameter segment '" << segment << "' in route pattern " << pattern;
-      THROW_CHECK(names.insert(std::string(segment)).second)
+      THROW_CHECK(names.insert(ParamName(segment)).second)
           << "duplicate parameter " << segment << " in route pattern " << pattern;
+      THROW_CHECK(!IsTailParam(segment) || slash == std::string_view::npos)
+          << "tail parameter " << segment << " must be the last segment of " << pattern;
+      THROW_CHECK(!ParamName(segment).empty() && ParamName(segment).find('.') == std::string::npos)
+          << "malformed parameter name in segment '" << segment << "' of " << pattern;
     }
     segments.emplace_back(segment);
     if (slash == std::string_view::npos) break;
@@ -45,13 +61,27 @@ std::string VerbName(HttpVerb verb) {
 
 // Matches decoded path segments against a pattern; fills `params` on success.
 bool MatchSegments(const Route& route, const std::vector<std::string>& path, KeyValues* params) {
-  if (route.segments.size() != path.size()) return false;
+  const bool has_tail = !route.segments.empty() && IsTailParam(route.segments.back());
+  if (has_tail ? path.size() < route.segments.size() : route.segments.size() != path.size()) {
+    return false;
+  }
   params->clear();
-  for (std::size_t i = 0; i < path.size(); ++i) {
+  for (std::size_t i = 0; i < route.segments.size(); ++i) {
     const std::string& pattern_segment = route.segments[i];
+    if (IsTailParam(pattern_segment)) {
+      // The rest of the path: non-empty segments without an encoded '/', joined with '/'.
+      std::string value;
+      for (std::size_t j = i; j < path.size(); ++j) {
+        if (path[j].empty() || path[j].find('/') != std::string::npos) return false;
+        if (j > i) value += '/';
+        value += path[j];
+      }
+      params->emplace_back(ParamName(pattern_segment), std::move(value));
+      return true;
+    }
     if (IsParam(pattern_segment)) {
       if (path[i].empty()) return false;
-      params->emplace_back(pattern_segment.substr(1, pattern_segment.size() - 2), path[i]);
+      params->emplace_back(ParamName(pattern_segment), path[i]);
     } else if (pattern_segment != path[i]) {
       return false;
     }

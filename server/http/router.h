@@ -7,6 +7,12 @@
 // literal at the first differing segment wins ("/jobs/stats" beats "/jobs/{id}"), whatever the
 // registration order.
 //
+// The last segment may be a tail parameter `{name...}`: it matches one or more remaining
+// segments and its value is their decoded forms joined with '/' ("/files/{name...}" matches
+// "/files/report/similarity.png" with name = "report/similarity.png"). Empty segments and
+// segments holding an encoded '/' do not match, so the value's '/' are exactly the path's
+// separators; the handler must still refuse "." and ".." segments before using it as a path.
+//
 // Matching distinguishes an unknown path (404) from a known path requested with the wrong verb
 // (405 with `Allow`). A GET route also answers HEAD (the body is dropped by the transport). An
 // optional fallback handler answers GET and HEAD requests whose path matches no pattern; the

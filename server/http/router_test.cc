@@ -52,6 +52,37 @@ TEST(Router, ParameterNeedsANonEmptySegment) {
   EXPECT_EQ(router.Match(HttpVerb::get, "/jobs/1/extra").kind, RouteMatch::Kind::kNotFound);
 }
 
+TEST(Router, TailParameterTakesTheRestOfThePath) {
+  Router router;
+  router.Add(HttpVerb::get, "/jobs/{id}/files/{name...}", Named("file"));
+  router.Add(HttpVerb::get, "/jobs/{id}/files", Named("files"));
+
+  RouteMatch match = router.Match(HttpVerb::get, "/jobs/7/files/report/similarity%20map.png");
+  ASSERT_EQ(match.kind, RouteMatch::Kind::kFound);
+  const KeyValues expected = {{"id", "7"}, {"name", "report/similarity map.png"}};
+  EXPECT_EQ(match.path_params, expected);
+
+  match = router.Match(HttpVerb::get, "/jobs/7/files/model.glb");
+  ASSERT_EQ(match.kind, RouteMatch::Kind::kFound);
+  EXPECT_EQ(match.path_params[1].second, "model.glb");
+
+  match = router.Match(HttpVerb::get, "/jobs/7/files");
+  ASSERT_EQ(match.kind, RouteMatch::Kind::kFound);
+  EXPECT_EQ(Call(match), "files");
+
+  // Empty segments and encoded slashes never match, so '/' in the value are real separators.
+  EXPECT_EQ(router.Match(HttpVerb::get, "/jobs/7/files/a//b").kind, RouteMatch::Kind::kNotFound);
+  EXPECT_EQ(router.Match(HttpVerb::get, "/jobs/7/files/a/").kind, RouteMatch::Kind::kNotFound);
+  EXPECT_EQ(router.Match(HttpVerb::get, "/jobs/7/files/a%2Fb").kind, RouteMatch::Kind::kNotFound);
+}
+
+TEST(Router, TailParameterMustBeLast) {
+  Router router;
+  EXPECT_THROW(router.Add(HttpVerb::get, "/files/{name...}/x", Named("x")), CheckError);
+  EXPECT_THROW(router.Add(HttpVerb::get, "/files/{...}", Named("x")), CheckError);
+  EXPECT_THROW(router.Add(HttpVerb::get, "/files/{a}/{a...}", Named("x")), CheckError);
+}
+
 TEST(Router, LiteralBeatsParameterWhateverTheOrder) {
   Router router;
   router.Add(HttpVerb::get, "/jobs/{id}", Named("job"));

@@ -18,6 +18,7 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <csignal>
@@ -181,6 +182,13 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
                                      std::chrono::steady_clock::time_point start);
   template <class Message>
   net::awaitable<bool> WriteMessage(beast::tcp_stream& stream, Message& message);
+  // Writes a streamed (chunked) response; adds the bytes sent to *body_bytes.
+  template <class FillHeaders>
+  net::awaitable<bool> WriteStream(beast::tcp_stream& stream,
+                                   const RequestContext& context,
+                                   Response& response,
+                                   FillHeaders& fill_headers,
+                                   std::uint64_t* body_bytes);
   net::awaitable<void> Linger(beast::tcp_stream& stream);
 
   void CloseConnections(bool only_idle);
@@ -204,103 +212,6 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
 
 //------------------------------------------------------------------------------------------------
 // Response writing.
-
-template <class Message>
-net::awaitable<bool> HttpServer::Impl::WriteMessage(beast::tcp_stream& stream, Message& message) {
-  // Piecewise with a timeout per piece, so a large download to a slow but live client is not cut
-  // off while a client that stops reading is.
-  http::serializer<false, typename Message::body_type, typename Message::fields_type> serializer(
-      message);
-  beast::error_code ec;
-  while (!serializer.is_done()) {
-    stream.expires_after(options_.write_timeout);
-    co_await http::async_write_some(stream, serializer, Awaitable(ec));
-    if (ec) {
-      LOG_DEBUG << "write failed: " << ec.message();
-      co_return false;
-    }
-  }
-  co_return true;
-}
-
-net::awaitable<bool> HttpServer::Impl::WriteResponse(beast::tcp_stream& stream,
-                                                     const RequestContext& context,
-                                                     Response& response,
-                                                     bool keep_alive,
-                                                     std::chrono::steady_clock::time_point start) {
-  const bool head = context.method == HttpVerb::head;
-
-  // Open a file body first: a file that vanished becomes a 404 JSON error.
-  http::file_body::value_type file;
-  if (response.file()) {
-    beast::error_code ec;
-    file.open(response.file()->c_str(), beast::file_mode::scan, ec);
-    if (ec) {
-      LOG_WARNING << "cannot open " << *response.file() << ": " << ec.message();
-      response = ErrorResponse(HttpStatus::not_found, "file not found");
-    }
-  }
-  const bool is_file = response.file().has_value();
-  const std::uint64_t body_bytes = is_file ? file.size() : response.body().size();
-
-  auto fill_headers = [&](auto& message) {
-    for (const auto& [name, value] : response.headers()) message.set(name, value);
-    message.set(http::field::server, options_.server_name);
-    if (response.FindHeader("Content-Type") == nullptr) {
-      message.set(http::field::content_type, std::string(kTextContentType));
-    }
-    message.set("X-Request-Id", context.request_id);
-    message.keep_alive(keep_alive);
-  };
-
-  bool written = false;
-  if (head) {
-    http::response<http::empty_body> message{response.status(), 11};
-    fill_headers(message);
-    message.content_length(body_bytes);
-    written = co_await WriteMessage(stream, message);
-  } else if (is_file) {
-    http::response<http::file_body> message{response.status(), 11};
-    fill_headers(message);
-    message.body() = std::move(file);
-    message.prepare_payload();
-    written = co_await WriteMessage(stream, message);
-  } else {
-    http::response<http::string_body> message{response.status(), 11};
-    fill_headers(message);
-    message.body() = response.body();
-    message.prepare_payload();
-    written = co_await WriteMessage(stream, message);
-  }
-
-  const auto elapsed =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start);
-  char elapsed_text[32];
-  std::snprintf(elapsed_text, sizeof(elapsed_text), "%.1f", elapsed.count());
-  LOG_INFO << "http " << (context.method_string.empty() ? "-" : context.method_string) << " "
-           << (context.path.empty() ? "-" : context.path) << " "
-           << static_cast<unsigned>(response.status()) << " " << (head ? 0 : body_bytes) << "B "
-           << elapsed_text << "ms " << context.remote_address << " id=" << context.request_id
-           << (written ? "" : " (write failed)");
-  co_return written;
-}
-
-net::awaitable<void> HttpServer::Impl::Linger(beast::tcp_stream& stream) {
-  beast::error_code ec;
-  stream.socket().shutdown(tcp::socket::shutdown_send, ec);
-  if (ec) co_return;
-  std::array<char, 16 * 1024> discard;
-  std::uint64_t total = 0;
-  stream.expires_after(kLingerTime);
-  while (total < kLingerMaxBytes) {
-    const std::size_t n = co_await stream.async_read_some(net::buffer(discard), Awaitable(ec));
-    if (ec) break;
-    total += n;
-  }
-}
-
-//------------------------------------------------------------------------------------------------
-// Request handling.
 
 namespace {
 
@@ -326,6 +237,212 @@ Response InternalError(const RequestContext& context) {
 }
 
 }  // namespace
+
+namespace {
+
+// A body of `length` bytes read from `offset` of an open file: whole files and Range requests.
+// (Beast's file_body always sends the whole file.) Shaped like beast::http::basic_file_body.
+struct FileSliceBody {
+  struct value_type {
+    beast::file file;
+    std::uint64_t offset = 0;
+    std::uint64_t length = 0;
+  };
+
+  static std::uint64_t size(const value_type& body) { return body.length; }
+
+  class writer {
+   public:
+    using const_buffers_type = net::const_buffer;
+
+    template <bool kIsRequest, class Fields>
+    writer(http::header<kIsRequest, Fields>& /*header*/, value_type& body) : body_(body) {}
+
+    void init(beast::error_code& ec) {
+      remaining_ = body_.length;
+      body_.file.seek(body_.offset, ec);
+    }
+
+    boost::optional<std::pair<const_buffers_type, bool>> get(beast::error_code& ec) {
+      const std::size_t amount =
+          static_cast<std::size_t>(std::min<std::uint64_t>(remaining_, buffer_.size()));
+      if (amount == 0) {
+        ec = {};
+        return boost::none;
+      }
+      const std::size_t n = body_.file.read(buffer_.data(), amount, ec);
+      if (ec) return boost::none;
+      if (n == 0) {
+        // The file became shorter than the size announced in Content-Length.
+        ec = boost::system::errc::make_error_code(boost::system::errc::io_error);
+        return boost::none;
+      }
+      remaining_ -= n;
+      return std::make_pair(net::const_buffer(buffer_.data(), n), remaining_ > 0);
+    }
+
+   private:
+    value_type& body_;
+    std::uint64_t remaining_ = 0;
+    std::array<char, kBodyChunkBytes> buffer_;
+  };
+};
+
+}  // namespace
+
+template <class Message>
+net::awaitable<bool> HttpServer::Impl::WriteMessage(beast::tcp_stream& stream, Message& message) {
+  // Piecewise with a timeout per piece, so a large download to a slow but live client is not cut
+  // off while a client that stops reading is.
+  http::serializer<false, typename Message::body_type, typename Message::fields_type> serializer(
+      message);
+  beast::error_code ec;
+  while (!serializer.is_done()) {
+    stream.expires_after(options_.write_timeout);
+    co_await http::async_write_some(stream, serializer, Awaitable(ec));
+    if (ec) {
+      LOG_DEBUG << "write failed: " << ec.message();
+      co_return false;
+    }
+  }
+  co_return true;
+}
+
+template <class FillHeaders>
+net::awaitable<bool> HttpServer::Impl::WriteStream(beast::tcp_stream& stream,
+                                                   const RequestContext& context,
+                                                   Response& response,
+                                                   FillHeaders& fill_headers,
+                                                   std::uint64_t* body_bytes) {
+  // The header with chunked transfer coding, then one chunk per non-empty step, then the last
+  // chunk (Beast's "chunked encoding" pattern). Between steps the coroutine sleeps on a timer,
+  // so a long-lived stream costs no thread.
+  http::response<http::empty_body> message{response.status(), 11};
+  fill_headers(message);
+  message.chunked(true);
+  http::response_serializer<http::empty_body> serializer(message);
+  beast::error_code ec;
+  stream.expires_after(options_.write_timeout);
+  co_await http::async_write_header(stream, serializer, Awaitable(ec));
+  if (ec) co_return false;
+
+  const StreamProducer& producer = response.stream_producer();
+  net::steady_timer timer(stream.get_executor());
+  while (true) {
+    const bool stopping = stopping_;
+    std::optional<StreamStep> step = Guarded(context, [&] { return producer(); });
+    if (step && !step->data.empty()) {
+      *body_bytes += step->data.size();
+      auto chunk = http::make_chunk(net::const_buffer(step->data.data(), step->data.size()));
+      stream.expires_after(options_.write_timeout);
+      co_await net::async_write(stream, chunk, Awaitable(ec));
+      if (ec) co_return false;
+    }
+    if (!step || step->done || stopping) break;
+    timer.expires_after(response.stream_poll_interval());
+    co_await timer.async_wait(Awaitable(ec));
+  }
+  auto last = http::make_chunk_last();
+  stream.expires_after(options_.write_timeout);
+  co_await net::async_write(stream, last, Awaitable(ec));
+  co_return !ec;
+}
+
+net::awaitable<bool> HttpServer::Impl::WriteResponse(beast::tcp_stream& stream,
+                                                     const RequestContext& context,
+                                                     Response& response,
+                                                     bool keep_alive,
+                                                     std::chrono::steady_clock::time_point start) {
+  const bool head = context.method == HttpVerb::head;
+
+  // Open a file body first: a file that vanished (or shrank below the slice) becomes a 404.
+  FileSliceBody::value_type file;
+  if (response.file()) {
+    beast::error_code ec;
+    file.file.open(response.file()->c_str(), beast::file_mode::scan, ec);
+    const std::uint64_t file_size = ec ? 0 : file.file.size(ec);
+    if (!ec) {
+      const FileSlice slice = response.file_slice().value_or(FileSlice{0, file_size});
+      if (slice.offset > file_size || slice.length > file_size - slice.offset) {
+        ec = boost::system::errc::make_error_code(boost::system::errc::invalid_seek);
+      }
+      file.offset = slice.offset;
+      file.length = slice.length;
+    }
+    if (ec) {
+      LOG_WARNING << "cannot open " << *response.file() << ": " << ec.message();
+      response = ErrorResponse(HttpStatus::not_found, "file not found");
+    }
+  }
+  const bool is_file = response.file().has_value();
+  const bool is_stream = static_cast<bool>(response.stream_producer());
+  std::uint64_t body_bytes = is_file ? file.length : response.body().size();
+  if (options_.metrics != nullptr) {
+    options_.metrics->CountResponse(static_cast<unsigned>(response.status()));
+  }
+
+  auto fill_headers = [&](auto& message) {
+    for (const auto& [name, value] : response.headers()) message.set(name, value);
+    message.set(http::field::server, options_.server_name);
+    if (response.FindHeader("Content-Type") == nullptr) {
+      message.set(http::field::content_type, std::string(kTextContentType));
+    }
+    message.set("X-Request-Id", context.request_id);
+    message.keep_alive(keep_alive);
+  };
+
+  bool written = false;
+  if (head) {
+    http::response<http::empty_body> message{response.status(), 11};
+    fill_headers(message);
+    if (!is_stream) message.content_length(body_bytes);
+    body_bytes = 0;
+    written = co_await WriteMessage(stream, message);
+  } else if (is_file) {
+    http::response<FileSliceBody> message{response.status(), 11};
+    fill_headers(message);
+    message.body() = std::move(file);
+    message.prepare_payload();
+    written = co_await WriteMessage(stream, message);
+  } else if (is_stream) {
+    body_bytes = 0;
+    written = co_await WriteStream(stream, context, response, fill_headers, &body_bytes);
+  } else {
+    http::response<http::string_body> message{response.status(), 11};
+    fill_headers(message);
+    message.body() = response.body();
+    message.prepare_payload();
+    written = co_await WriteMessage(stream, message);
+  }
+
+  const auto elapsed =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start);
+  char elapsed_text[32];
+  std::snprintf(elapsed_text, sizeof(elapsed_text), "%.1f", elapsed.count());
+  LOG_INFO << "http " << (context.method_string.empty() ? "-" : context.method_string) << " "
+           << (context.path.empty() ? "-" : context.path) << " "
+           << static_cast<unsigned>(response.status()) << " " << body_bytes << "B " << elapsed_text
+           << "ms " << context.remote_address << " id=" << context.request_id
+           << (written ? "" : " (write failed)");
+  co_return written;
+}
+
+net::awaitable<void> HttpServer::Impl::Linger(beast::tcp_stream& stream) {
+  beast::error_code ec;
+  stream.socket().shutdown(tcp::socket::shutdown_send, ec);
+  if (ec) co_return;
+  std::array<char, 16 * 1024> discard;
+  std::uint64_t total = 0;
+  stream.expires_after(kLingerTime);
+  while (total < kLingerMaxBytes) {
+    const std::size_t n = co_await stream.async_read_some(net::buffer(discard), Awaitable(ec));
+    if (ec) break;
+    total += n;
+  }
+}
+
+//------------------------------------------------------------------------------------------------
+// Request handling.
 
 std::optional<Response> HttpServer::Impl::Admit(RequestContext& context, Dispatch* dispatch) {
   Result<TargetParts> target = SplitTarget(context.target);

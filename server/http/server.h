@@ -29,6 +29,7 @@
 #define RECONDUIT_SERVER_HTTP_SERVER_H_
 
 #include "core/util/status.h"
+#include "server/http/http_metrics.h"
 #include "server/http/router.h"
 
 #include <chrono>
@@ -73,6 +74,9 @@ struct HttpServerOptions {
   // Seconds in Retry-After when the server is full (503) or a handler reports
   // kResourceExhausted.
   int retry_after_seconds = 5;
+  // When set, every response is counted by status here (for GET /metrics). Shared with the
+  // handler that reports it.
+  std::shared_ptr<HttpMetrics> metrics;
   // Install SIGINT/SIGTERM handlers in Run(). Off for servers embedded in tests, which call
   // HttpServer::Shutdown() instead.
   bool handle_signals = true;

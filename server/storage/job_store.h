@@ -73,7 +73,7 @@ enum class ImageStatus { kAccepted, kRejected };
 std::string_view ImageStatusName(ImageStatus status);
 
 // One uploaded photo (a row of `images`).
-struct ImageRecord {
+struct JobImageRecord {
   // 0-based position in the upload; unique within a job.
   int index = 0;
   // The client's file name, for display only; never used as a path.
@@ -93,7 +93,7 @@ struct ImageRecord {
   // Why a rejected photo was rejected ("truncated JPEG"); empty for accepted photos.
   std::string reject_reason;
 
-  friend bool operator==(const ImageRecord&, const ImageRecord&) = default;
+  friend bool operator==(const JobImageRecord&, const JobImageRecord&) = default;
 };
 
 // A job as stored (a row of `jobs`).
@@ -147,7 +147,7 @@ struct NewJob {
   // How many runs a job gets before a lost worker fails it; [1, 100].
   int max_attempts = 3;
   // All photos of the upload, accepted and rejected; at least one must be accepted.
-  std::vector<ImageRecord> images;
+  std::vector<JobImageRecord> images;
   // When > 0 and this many jobs are already queued, CreateJob fails with kResourceExhausted
   // (the server's queue limit, checked in the same transaction as the insert).
   std::int64_t max_queued_jobs = 0;
@@ -182,7 +182,7 @@ struct HeartbeatReply {
 };
 
 // A progress report from the lease owner.
-struct ProgressUpdate {
+struct JobProgressUpdate {
   // The stage now running; empty keeps the current one.
   std::string stage;
   // Overall progress, clamped to [0, 1].
@@ -276,7 +276,7 @@ class JobStore {
   virtual Result<Job> GetJob(std::string_view id) = 0;
 
   // A job's photos in upload order; kNotFound when the job does not exist.
-  virtual Result<std::vector<ImageRecord>> ListImages(std::string_view job_id) = 0;
+  virtual Result<std::vector<JobImageRecord>> ListImages(std::string_view job_id) = 0;
 
   // Jobs newest first, one page at a time, with the total count.
   virtual Result<JobPage> ListJobs(const JobListQuery& query) = 0;
@@ -327,7 +327,7 @@ class JobStore {
   //         kInvalidArgument when a patch is not an object.
   virtual Status RecordProgress(std::string_view job_id,
                                 std::string_view worker_id,
-                                const ProgressUpdate& update) = 0;
+                                const JobProgressUpdate& update) = 0;
 
   // Marks `stage` finished: its output is complete on disk and a later run may skip it. Adds it
   // to finished_stages (once), sets its stage_progress to {"progress": 1, "seconds": seconds}

@@ -117,7 +117,7 @@ TEST_F(JobStoreTest, CreateStoresTheJobAndItsPhotos) {
   EXPECT_TRUE(job.finished_stages.empty());
   EXPECT_EQ(job.counts, nlohmann::json::object());
 
-  Result<std::vector<ImageRecord>> images = store_->ListImages(job.id);
+  Result<std::vector<JobImageRecord>> images = store_->ListImages(job.id);
   ASSERT_TRUE(images.ok()) << images.status();
   EXPECT_EQ(*images, new_job.images);
 

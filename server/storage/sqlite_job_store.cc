@@ -239,7 +239,7 @@ Status CheckNewJob(const std::string& id, const NewJob& job) {
                                    std::to_string(job.max_attempts));
   }
   bool any_accepted = false;
-  for (const ImageRecord& image : job.images) {
+  for (const JobImageRecord& image : job.images) {
     if (!IsSafeStoredName(image.stored_name)) {
       return Status::InvalidArgument("unsafe stored file name " + Quote(image.stored_name));
     }
@@ -363,7 +363,7 @@ class SqliteJobStore final : public JobStore {
 
   Result<Job> CreateJob(const NewJob& job) override;
   Result<Job> GetJob(std::string_view id) override;
-  Result<std::vector<ImageRecord>> ListImages(std::string_view job_id) override;
+  Result<std::vector<JobImageRecord>> ListImages(std::string_view job_id) override;
   Result<JobPage> ListJobs(const JobListQuery& query) override;
   Result<JobState> RequestCancel(std::string_view id) override;
   Result<Job> RestartJob(std::string_view id) override;
@@ -375,7 +375,7 @@ class SqliteJobStore final : public JobStore {
                                    std::chrono::milliseconds lease) override;
   Status RecordProgress(std::string_view job_id,
                         std::string_view worker_id,
-                        const ProgressUpdate& update) override;
+                        const JobProgressUpdate& update) override;
   Status MarkStageFinished(std::string_view job_id,
                            std::string_view worker_id,
                            std::string_view stage,
@@ -490,7 +490,7 @@ Result<Job> SqliteJobStore::CreateJob(const NewJob& new_job) {
     const std::string options = new_job.options.is_null() ? "{}" : DumpJson(new_job.options);
     const auto accepted = std::count_if(
         new_job.images.begin(), new_job.images.end(),
-        [](const ImageRecord& image) { return image.status == ImageStatus::kAccepted; });
+        [](const JobImageRecord& image) { return image.status == ImageStatus::kAccepted; });
     const auto rejected = static_cast<std::int64_t>(new_job.images.size()) - accepted;
 
     Transaction transaction(db, Transaction::Mode::kImmediate);
@@ -516,7 +516,7 @@ Result<Job> SqliteJobStore::CreateJob(const NewJob& new_job) {
         "INSERT INTO images (job_id, idx, original_name, stored_name, bytes, width, height, "
         "exif_focal_px, make, model, status, reject_reason) "
         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)");
-    for (const ImageRecord& image : new_job.images) {
+    for (const JobImageRecord& image : new_job.images) {
       image_insert.Reset();
       image_insert.Bind(1, id).Bind(2, image.index).Bind(3, image.original_name);
       image_insert.Bind(4, image.stored_name).Bind(5, image.bytes).Bind(6, image.width);
@@ -545,9 +545,9 @@ Result<Job> SqliteJobStore::GetJob(std::string_view id) {
   });
 }
 
-Result<std::vector<ImageRecord>> SqliteJobStore::ListImages(std::string_view job_id) {
+Result<std::vector<JobImageRecord>> SqliteJobStore::ListImages(std::string_view job_id) {
   if (!IsValidJobId(job_id)) return JobNotFound(job_id);
-  return Run("list images", [&](SqliteConnection& db) -> Result<std::vector<ImageRecord>> {
+  return Run("list images", [&](SqliteConnection& db) -> Result<std::vector<JobImageRecord>> {
     Transaction transaction(db, Transaction::Mode::kDeferred);  // One consistent snapshot.
     if (!FindJobState(db, job_id)) return JobNotFound(job_id);
     Statement select(db.get(),
@@ -555,9 +555,9 @@ Result<std::vector<ImageRecord>> SqliteJobStore::ListImages(std::string_view job
                      "exif_focal_px, make, model, status, reject_reason "
                      "FROM images WHERE job_id = ?1 ORDER BY idx");
     select.Bind(1, job_id);
-    std::vector<ImageRecord> images;
+    std::vector<JobImageRecord> images;
     while (select.Step()) {
-      ImageRecord image;
+      JobImageRecord image;
       image.index = static_cast<int>(select.Int64(0));
       image.original_name = select.Text(1);
       image.stored_name = select.Text(2);
@@ -749,7 +749,7 @@ Result<HeartbeatReply> SqliteJobStore::Heartbeat(std::string_view job_id,
 
 Status SqliteJobStore::RecordProgress(std::string_view job_id,
                                       std::string_view worker_id,
-                                      const ProgressUpdate& update) {
+                                      const JobProgressUpdate& update) {
   if (Status s = CheckWorker(worker_id); !s.ok()) return s;
   if (!IsValidJobId(job_id)) return JobNotFound(job_id);
   if (std::isnan(update.progress)) return Status::InvalidArgument("progress is NaN");

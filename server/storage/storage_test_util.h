@@ -63,7 +63,7 @@ inline NewJob MakeNewJob(int accepted = 2, int max_attempts = 3) {
   job.options = {{"quality", "fast"}};
   job.max_attempts = max_attempts;
   for (int i = 0; i < accepted; ++i) {
-    ImageRecord image;
+    JobImageRecord image;
     image.index = i;
     image.original_name = "IMG_" + std::to_string(i) + ".JPG";
     char stored[16];

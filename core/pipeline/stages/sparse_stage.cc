@@ -1,0 +1,260 @@
+#include "core/pipeline/stages/sparse_stage.h"
+
+#include "core/image/image_reader.h"
+#include "core/io/bundler.h"
+#include "core/io/cameras_json.h"
+#include "core/io/colmap_text.h"
+#include "core/io/file_util.h"
+#include "core/io/ply.h"
+#include "core/io/reconstruction_json.h"
+#include "core/pipeline/stages/features_stage.h"
+#include "core/pipeline/stages/ingest_stage.h"
+#include "core/pipeline/stages/matching_stage.h"
+#include "core/sfm/incremental_mapper.h"
+#include "core/sfm/self_calibration.h"
+#include "core/sfm/tracks.h"
+#include "core/util/logging.h"
+#include "core/util/parallel.h"
+
+#include <opencv2/core.hpp>
+
+#include <map>
+#include <mutex>
+
+namespace reconduit {
+namespace {
+
+// Minimum inliers for a pair's F to take part in self-calibration.
+constexpr int kMinSelfCalibrationInliers = 50;
+// EXIF and self-calibration "disagree" beyond this relative difference.
+constexpr double kFocalDisagreement = 0.15;
+
+double MedianOf(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+// Mean colour of every point's observations, read from the photos (in parallel).
+void ColourPoints(const std::vector<IngestedImage>& images,
+                  const PipelineOptions& options,
+                  const CancelToken& cancel,
+                  Reconstruction* model) {
+  std::map<int, const IngestedImage*> by_id;
+  for (const IngestedImage& image : images) by_id[image.index] = &image;
+  std::vector<int> ids;
+  for (const auto& [id, image] : model->images) ids.push_back(id);
+  std::map<int, Eigen::Vector3d> sums;
+  std::map<int, int> counts;
+  std::mutex mutex;
+  ImageReaderOptions reader;
+  reader.min_side = options.min_image_side;
+  reader.max_pixels = options.max_image_pixels;
+  reader.read_exif = false;
+  ParallelFor(
+      0, ids.size(),
+      [&](std::size_t k) {
+        cancel.ThrowIfCancelled();
+        const RegisteredImage& image = model->images.at(ids[k]);
+        auto pixels = ReadImage(by_id.at(ids[k])->path, reader);
+        if (!pixels.ok()) return;
+        std::vector<std::pair<int, Eigen::Vector3d>> local;
+        for (std::size_t kp = 0; kp < image.point_for_keypoint.size(); ++kp) {
+          const int point = image.point_for_keypoint[kp];
+          if (point == kInvalidId) continue;
+          const int x = std::clamp(static_cast<int>(std::lround(image.keypoints[kp].x())), 0,
+                                   pixels->cols - 1);
+          const int y = std::clamp(static_cast<int>(std::lround(image.keypoints[kp].y())), 0,
+                                   pixels->rows - 1);
+          const cv::Vec3b bgr = pixels->at<cv::Vec3b>(y, x);
+          local.emplace_back(point, Eigen::Vector3d(bgr[2], bgr[1], bgr[0]));
+        }
+        std::lock_guard lock(mutex);
+        for (const auto& [point, rgb] : local) {
+          sums[point] += rgb;
+          ++counts[point];
+        }
+      },
+      options.num_threads);
+  for (auto& [id, point] : model->points) {
+    if (counts[id] == 0) continue;
+    const Eigen::Vector3d mean = sums[id] / counts[id];
+    for (int c = 0; c < 3; ++c)
+      point.rgb[c] = static_cast<std::uint8_t>(std::clamp(std::lround(mean[c]), 0L, 255L));
+  }
+}
+
+}  // namespace
+
+StageResult SparseStage::Run(StageContext& context) const {
+  const Workspace& workspace = context.workspace;
+  auto images = ReadIngestedImages(workspace);
+  if (!images.ok()) return StageResult::Failed(images.status().message());
+  auto pairs = ReadVerifiedPairs(workspace);
+  if (!pairs.ok()) return StageResult::Failed(pairs.status().message());
+
+  // Cameras: one per camera key.
+  MapperInput input;
+  std::map<std::string, int> camera_of_key;
+  std::map<int, std::vector<const IngestedImage*>> members;
+  for (const IngestedImage& image : *images) {
+    if (!image.accepted) continue;
+    auto [it, inserted] =
+        camera_of_key.try_emplace(image.camera_key, static_cast<int>(camera_of_key.size()));
+    members[it->second].push_back(&image);
+    auto features = ReadImageFeatures(workspace, image.index);
+    if (!features.ok()) return StageResult::Failed(features.status().message());
+    MapperImage mapper_image;
+    mapper_image.name = image.name;
+    mapper_image.camera_id = it->second;
+    for (const Keypoint& kp : features->keypoints) mapper_image.keypoints.emplace_back(kp.x, kp.y);
+    input.images[image.index] = std::move(mapper_image);
+  }
+
+  nlohmann::json calibration = nlohmann::json::array();
+  for (const auto& [camera_id, photos] : members) {
+    const IngestedImage& first = *photos.front();
+    Camera camera =
+        Camera::FromFocal(first.width, first.height, 1.2 * std::max(first.width, first.height));
+    std::vector<double> exif;
+    for (const IngestedImage* p : photos) {
+      if (p->exif_focal_px) exif.push_back(*p->exif_focal_px);
+    }
+    std::vector<Eigen::Matrix3d> fundamentals;
+    for (const VerifiedPair& pair : *pairs) {
+      if (pair.type != TwoViewModelType::kFundamental ||
+          pair.num_inliers_F < kMinSelfCalibrationInliers)
+        continue;
+      if (input.images.count(pair.matches.image1) && input.images.count(pair.matches.image2) &&
+          input.images.at(pair.matches.image1).camera_id == camera_id &&
+          input.images.at(pair.matches.image2).camera_id == camera_id) {
+        fundamentals.push_back(pair.F);
+      }
+    }
+    const auto self = EstimateSharedFocal(fundamentals, camera.cx, camera.cy,
+                                          DefaultFocalRange(camera.width, camera.height));
+    nlohmann::json record = {{"camera_id", camera_id},
+                             {"photos", photos.size()},
+                             {"width", camera.width},
+                             {"height", camera.height},
+                             {"pairs", fundamentals.size()}};
+    if (self.ok()) {
+      record["self_calibrated_focal"] = self->focal;
+      record["self_calibration_pairs_agreeing"] = self->num_agreeing;
+      record["self_calibration_spread"] = self->spread;
+    } else {
+      record["self_calibration"] = self.status().message();
+    }
+    if (!exif.empty()) record["exif_focal"] = MedianOf(exif);
+    if (context.options.use_exif && !exif.empty()) {
+      camera.focal = MedianOf(exif);
+      record["initial_focal_source"] = "exif";
+      if (self.ok() && std::abs(self->focal / camera.focal - 1.0) > kFocalDisagreement) {
+        LOG_WARNING << "sparse: camera " << camera_id << ": EXIF focal " << camera.focal
+                    << " px disagrees with self-calibration " << self->focal << " px";
+        record["warning"] = "EXIF focal length and self-calibration disagree by more than 15 %";
+      }
+    } else if (self.ok()) {
+      camera.focal = self->focal;
+      record["initial_focal_source"] = "self_calibration";
+    } else {
+      record["initial_focal_source"] = "default";
+      record["warning"] =
+          "no EXIF focal length and self-calibration was not possible; assumed 1.2 x the longer "
+          "side";
+      LOG_WARNING << "sparse: camera " << camera_id << ": " << self.status().message()
+                  << "; assuming focal " << camera.focal << " px";
+    }
+    record["initial_focal"] = camera.focal;
+    LOG_INFO << "sparse: camera " << camera_id << " (" << photos.size() << " photos, "
+             << camera.width << "x" << camera.height << "): initial focal " << camera.focal
+             << " px from " << record["initial_focal_source"].get<std::string>();
+    input.cameras[camera_id] = camera;
+    calibration.push_back(record);
+  }
+
+  std::vector<PairMatches> pair_matches;
+  for (const VerifiedPair& pair : *pairs) {
+    pair_matches.push_back(pair.matches);
+    MapperPair mp;
+    mp.image1 = pair.matches.image1;
+    mp.image2 = pair.matches.image2;
+    mp.epipolar = pair.type == TwoViewModelType::kFundamental;
+    mp.num_inliers_F = pair.num_inliers_F;
+    mp.num_inliers_H = pair.num_inliers_H;
+    mp.matches = pair.matches.matches;
+    input.pairs.push_back(std::move(mp));
+  }
+  TrackStatistics track_stats;
+  input.tracks = BuildTracks(pair_matches, 2, &track_stats);
+  LOG_INFO << "sparse: " << track_stats.num_tracks << " tracks (" << track_stats.num_inconsistent
+           << " inconsistent dropped), " << track_stats.num_observations << " observations";
+
+  IncrementalMapperOptions mapper_options;
+  mapper_options.num_threads = context.options.num_threads;
+  MapperSummary summary;
+  std::vector<Reconstruction> models =
+      ReconstructIncrementally(input, mapper_options, context.progress, context.cancel, &summary);
+  if (models.empty()) {
+    return StageResult::Degenerate(
+        "no reconstruction: no pair of photos had enough parallax and matches to start from");
+  }
+
+  for (Reconstruction& model : models)
+    ColourPoints(*images, context.options, context.cancel, &model);
+
+  nlohmann::json model_summaries = nlohmann::json::array();
+  for (std::size_t k = 0; k < models.size(); ++k) {
+    const Reconstruction& model = models[k];
+    nlohmann::json cameras = nlohmann::json::array();
+    for (const auto& [id, camera] : model.cameras) {
+      cameras.push_back({{"camera_id", id},
+                         {"focal", camera.focal},
+                         {"cx", camera.cx},
+                         {"cy", camera.cy},
+                         {"k1", camera.k1},
+                         {"k2", camera.k2}});
+    }
+    model_summaries.push_back({{"images", model.images.size()},
+                               {"points", model.points.size()},
+                               {"observations", model.NumObservations()},
+                               {"mean_reprojection_error_px", model.MeanReprojectionError()},
+                               {"cameras", cameras}});
+  }
+  if (Status s = WriteFileAtomically(
+          context.stage_dir / "calibration.json",
+          nlohmann::json{
+              {"cameras", calibration}, {"models", model_summaries}, {"log", summary.log}}
+                  .dump(2) +
+              "\n");
+      !s.ok()) {
+    return StageResult::Failed(s.message());
+  }
+  for (std::size_t k = 0; k < models.size(); ++k) {
+    const Status s = WriteReconstructionJson(
+        context.stage_dir / ("model_" + std::to_string(k) + ".json"), models[k]);
+    if (!s.ok()) return StageResult::Failed(s.message());
+  }
+  // Deliverables of the largest model, as they appear in result.zip.
+  const Reconstruction& best = models.front();
+  std::vector<std::string> unregistered;
+  for (const IngestedImage& image : *images) {
+    if (image.accepted && !best.images.count(image.index)) unregistered.push_back(image.name);
+  }
+  const std::filesystem::path out = workspace.output_dir;
+  std::filesystem::create_directories(out / "sparse");
+  std::filesystem::create_directories(out / "bundle");
+  for (const Status& s :
+       {WriteCamerasJson(out / "cameras.json", best, unregistered),
+        WriteColmapText(out / "sparse", best), WriteBundler(out / "bundle", best),
+        WritePointCloudPly(out / "sparse.ply", PointCloudFromReconstruction(best))}) {
+    if (!s.ok()) return StageResult::Failed(s.message());
+  }
+  return StageResult::Success({{"models", models.size()},
+                               {"registered", summary.num_registered},
+                               {"photos", input.images.size()},
+                               {"points", summary.num_points},
+                               {"mean_reprojection_error_px", summary.mean_reprojection_error_px},
+                               {"cameras", calibration}});
+}
+
+}  // namespace reconduit

@@ -1,0 +1,271 @@
+#include "worker/benchmark.h"
+
+#include "core/eval/camera_evaluation.h"
+#include "core/io/colmap_text.h"
+#include "core/io/file_util.h"
+#include "core/io/reconstruction_json.h"
+#include "core/pipeline/default_stages.h"
+#include "core/pipeline/runner.h"
+#include "core/util/logging.h"
+#include "core/util/timer.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace reconduit {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ChildRun {
+  int exit_code = -1;
+  double seconds = 0.0;
+  std::int64_t peak_memory_bytes = 0;
+};
+
+// Runs a program (no shell), output to `log`, and measures it with wait4's rusage.
+ChildRun RunChild(const std::vector<std::string>& argv, const fs::path& log) {
+  ChildRun run;
+  const Timer timer;
+  const pid_t pid = fork();
+  if (pid == 0) {
+    FILE* out = std::fopen(log.c_str(), "a");
+    if (out != nullptr) {
+      dup2(fileno(out), STDOUT_FILENO);
+      dup2(fileno(out), STDERR_FILENO);
+    }
+    std::vector<char*> args;
+    for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    execvp(args[0], args.data());
+    _exit(127);
+  }
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  run.seconds = timer.ElapsedSeconds();
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  run.peak_memory_bytes = static_cast<std::int64_t>(usage.ru_maxrss) * 1024;
+  return run;
+}
+
+double MiB(std::int64_t bytes) { return bytes / (1024.0 * 1024.0); }
+
+void PrintRow(const std::string& name, const std::string& status, double seconds, double mib) {
+  std::cout << "  " << std::left << std::setw(20) << name << std::setw(12) << status << std::right
+            << std::fixed << std::setprecision(2) << std::setw(10) << seconds << std::setw(12)
+            << std::setprecision(1) << mib << "\n";
+}
+
+void PrintModel(const Reconstruction& model,
+                int total_photos,
+                const std::optional<std::vector<GroundTruthCamera>>& ground_truth) {
+  std::cout << "  registered          " << model.images.size() << "/" << total_photos << "\n"
+            << "  points              " << model.points.size() << "\n"
+            << "  mean reprojection   " << std::setprecision(3) << model.MeanReprojectionError()
+            << " px\n";
+  for (const auto& [id, camera] : model.cameras) {
+    std::cout << "  camera " << id << "            f " << std::setprecision(2) << camera.focal
+              << " px, k1 " << std::setprecision(4) << camera.k1 << ", k2 " << camera.k2 << "\n";
+  }
+  if (ground_truth) {
+    std::istringstream report(EvaluateCameras(model, *ground_truth).Report());
+    for (std::string line; std::getline(report, line);) std::cout << "  " << line << "\n";
+  }
+}
+
+struct ColmapResult {
+  double seconds = 0.0;
+  std::int64_t peak_memory_bytes = 0;
+  std::optional<Reconstruction> model;
+};
+
+std::optional<ColmapResult> RunColmap(const fs::path& images,
+                                      const fs::path& work,
+                                      int total_photos,
+                                      const std::optional<std::vector<GroundTruthCamera>>& gt) {
+  const fs::path dir = work / "colmap";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "sparse");
+  const fs::path log = dir / "colmap.log";
+  const std::string db = (dir / "database.db").string();
+  struct Step {
+    std::string name;
+    std::vector<std::string> argv;
+  };
+  const std::vector<Step> steps = {
+      {"features",
+       {"colmap", "feature_extractor", "--database_path", db, "--image_path", images.string(),
+        "--ImageReader.single_camera", "1", "--SiftExtraction.use_gpu", "0"}},
+      {"matching",
+       {"colmap", "exhaustive_matcher", "--database_path", db, "--SiftMatching.use_gpu", "0"}},
+      {"mapping",
+       {"colmap", "mapper", "--database_path", db, "--image_path", images.string(), "--output_path",
+        (dir / "sparse").string()}},
+  };
+  std::cout << "\nCOLMAP (" << log.string() << ")\n";
+  ColmapResult result;
+  for (const Step& step : steps) {
+    const ChildRun run = RunChild(step.argv, log);
+    if (run.exit_code == 127) {
+      std::cout << "  colmap is not installed: apt-get install colmap\n";
+      return std::nullopt;
+    }
+    PrintRow(step.name, run.exit_code == 0 ? "success" : "exit " + std::to_string(run.exit_code),
+             run.seconds, MiB(run.peak_memory_bytes));
+    result.seconds += run.seconds;
+    result.peak_memory_bytes = std::max(result.peak_memory_bytes, run.peak_memory_bytes);
+    if (run.exit_code != 0) return result;
+  }
+  PrintRow("total", "", result.seconds, MiB(result.peak_memory_bytes));
+  // The largest model is "0"; convert it to text and read it back.
+  const fs::path text = dir / "text";
+  fs::create_directories(text);
+  const ChildRun convert =
+      RunChild({"colmap", "model_converter", "--input_path", (dir / "sparse" / "0").string(),
+                "--output_path", text.string(), "--output_type", "TXT"},
+               log);
+  if (convert.exit_code != 0) {
+    std::cout << "  no COLMAP model to evaluate\n";
+    return result;
+  }
+  auto model = ReadColmapText(text);
+  if (!model.ok()) {
+    std::cout << "  cannot read COLMAP's model: " << model.status() << "\n";
+    return result;
+  }
+  PrintModel(*model, total_photos, gt);
+  result.model = std::move(*model);
+  return result;
+}
+
+}  // namespace
+
+int RunBenchmark(const std::vector<std::string>& args) {
+  std::vector<std::string> positional;
+  std::string gt_path, until = "sparse", options_file, work;
+  bool colmap = false;
+  int threads = -1;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& arg = args[i];
+    auto value = [&](std::string* out) {
+      if (i + 1 >= args.size()) return false;
+      *out = args[++i];
+      return true;
+    };
+    std::string text;
+    if (arg == "--gt") {
+      if (!value(&gt_path)) return (std::cerr << "reconduit: --gt needs a path\n", 2);
+    } else if (arg == "--until") {
+      if (!value(&until)) return (std::cerr << "reconduit: --until needs a stage\n", 2);
+    } else if (arg == "--options") {
+      if (!value(&options_file)) return (std::cerr << "reconduit: --options needs a file\n", 2);
+    } else if (arg == "--work") {
+      if (!value(&work)) return (std::cerr << "reconduit: --work needs a folder\n", 2);
+    } else if (arg == "--threads") {
+      if (!value(&text)) return (std::cerr << "reconduit: --threads needs a number\n", 2);
+      threads = std::atoi(text.c_str());
+    } else if (arg == "--colmap") {
+      colmap = true;
+    } else if (!arg.empty() && arg[0] == '-') {
+      std::cerr << "reconduit: unknown option '" << arg << "'\n";
+      return 2;
+    } else {
+      positional.push_back(arg);
+    }
+  }
+  if (positional.size() != 1) {
+    std::cerr << "usage: reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE]"
+                 " [--options FILE] [--work DIR] [--threads N]\n";
+    return 2;
+  }
+  const fs::path images = positional[0];
+  std::error_code ec;
+  if (!fs::is_directory(images, ec)) {
+    std::cerr << "reconduit: '" << images.string() << "' is not a folder\n";
+    return 2;
+  }
+  std::optional<std::vector<GroundTruthCamera>> ground_truth;
+  if (!gt_path.empty()) {
+    auto gt = ReadGroundTruth(gt_path);
+    if (!gt.ok()) {
+      std::cerr << "reconduit: ground truth: " << gt.status() << "\n";
+      return 2;
+    }
+    ground_truth = std::move(*gt);
+  }
+  Result<PipelineOptions> options = PipelineOptions();
+  if (!options_file.empty()) {
+    auto text = ReadFile(options_file);
+    if (!text.ok()) return (std::cerr << "reconduit: " << text.status() << "\n", 2);
+    options = ParsePipelineOptionsText(*text);
+  }
+  if (options.ok() && threads >= 0) {
+    nlohmann::json json = PipelineOptionsToJson(*options);
+    json["num_threads"] = threads;
+    options = ParsePipelineOptions(json);
+  }
+  if (!options.ok()) return (std::cerr << "reconduit: " << options.status() << "\n", 2);
+  auto stages = CreatePipelineStages(until);
+  if (!stages.ok()) return (std::cerr << "reconduit: " << stages.status() << "\n", 2);
+
+  const fs::path work_dir =
+      work.empty() ? fs::temp_directory_path() / "reconduit-benchmark" : fs::path(work);
+  Workspace workspace;
+  for (const auto& entry : fs::directory_iterator(images)) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || name[0] == '.' || !entry.is_regular_file()) continue;
+    workspace.images.push_back({entry.path(), name});
+  }
+  std::sort(workspace.images.begin(), workspace.images.end(),
+            [](const InputImage& a, const InputImage& b) { return a.name < b.name; });
+  fs::remove_all(work_dir / "reconduit", ec);  // Measure from scratch, never resume.
+  workspace.work_dir = work_dir / "reconduit" / "work";
+  workspace.output_dir = work_dir / "reconduit" / "output";
+  fs::create_directories(workspace.work_dir);
+  SetMinLogLevel(LogLevel::kWarning);
+
+  std::cout << "Reconduit on " << images.string() << " (" << workspace.images.size()
+            << " files, work folder " << work_dir.string() << ")\n";
+  const PipelineResult result = RunPipeline(*stages, workspace, *options, CancelToken());
+  double total = 0.0;
+  std::int64_t peak = 0;
+  for (const StageRecord& record : result.stages) {
+    PrintRow(record.name, std::string(StageStatusName(record.status)), record.seconds,
+             MiB(record.peak_memory_bytes));
+    if (record.name != "package") total += record.seconds;
+    peak = std::max(peak, record.peak_memory_bytes);
+  }
+  PrintRow("total", "", total, MiB(peak));
+  if (result.status != StageStatus::kSuccess) {
+    std::cout << "  failed at " << result.failed_stage << ": " << result.message << "\n";
+  }
+  std::optional<Reconstruction> ours;
+  auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
+  if (model.ok()) {
+    PrintModel(*model, static_cast<int>(workspace.images.size()), ground_truth);
+    ours = std::move(*model);
+  }
+
+  if (colmap) {
+    const auto theirs =
+        RunColmap(images, work_dir, static_cast<int>(workspace.images.size()), ground_truth);
+    if (theirs && theirs->seconds > 0) {
+      std::cout << "\nRatio Reconduit / COLMAP\n"
+                << "  time                " << std::setprecision(2) << total / theirs->seconds
+                << "\n"
+                << "  peak memory         " << static_cast<double>(peak) / theirs->peak_memory_bytes
+                << "\n";
+    }
+  }
+  return result.status == StageStatus::kSuccess ? 0 : 1;
+}
+
+}  // namespace reconduit
