@@ -152,6 +152,7 @@ int RunBenchmark(const std::vector<std::string>& args) {
   std::vector<std::string> positional;
   std::string gt_path, until = "sparse", options_file, work;
   bool colmap = false;
+  bool resume = false;
   int threads = -1;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& arg = args[i];
@@ -174,6 +175,8 @@ int RunBenchmark(const std::vector<std::string>& args) {
       threads = std::atoi(text.c_str());
     } else if (arg == "--colmap") {
       colmap = true;
+    } else if (arg == "--resume") {
+      resume = true;
     } else if (!arg.empty() && arg[0] == '-') {
       std::cerr << "reconduit: unknown option '" << arg << "'\n";
       return 2;
@@ -183,7 +186,7 @@ int RunBenchmark(const std::vector<std::string>& args) {
   }
   if (positional.size() != 1) {
     std::cerr << "usage: reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE]"
-                 " [--options FILE] [--work DIR] [--threads N]\n";
+                 " [--options FILE] [--work DIR] [--threads N] [--resume]\n";
     return 2;
   }
   const fs::path images = positional[0];
@@ -226,7 +229,9 @@ int RunBenchmark(const std::vector<std::string>& args) {
   }
   std::sort(workspace.images.begin(), workspace.images.end(),
             [](const InputImage& a, const InputImage& b) { return a.name < b.name; });
-  fs::remove_all(work_dir / "reconduit", ec);  // Measure from scratch, never resume.
+  // Measure from scratch unless asked to reuse the finished stages of an earlier run (for
+  // tuning a late stage: delete its folder under work/ and run again with --resume).
+  if (!resume) fs::remove_all(work_dir / "reconduit", ec);
   workspace.work_dir = work_dir / "reconduit" / "work";
   workspace.output_dir = work_dir / "reconduit" / "output";
   fs::create_directories(workspace.work_dir);

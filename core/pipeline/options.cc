@@ -65,6 +65,10 @@ std::vector<OptionSpec> MakeSpecs() {
   specs.push_back(IntegerOption("max_features", &PipelineOptions::max_features, 256, 65536,
                                 "At most this many features per photo, spread over the whole "
                                 "photo."));
+  specs.push_back(BooleanOption(
+      "refine_principal_point", &PipelineOptions::refine_principal_point,
+      "Refine the principal point in the final bundle adjustment of models with 8 or more "
+      "photos, instead of keeping it at the image centre."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;

@@ -36,6 +36,9 @@ struct PipelineOptions {
   int max_image_side = 3200;
   // At most this many features per photo. [256, 65536]
   int max_features = 8192;
+  // Refine the principal point in the final bundle adjustment of models with 8 or more photos
+  // (otherwise it stays at the image centre). [bool]
+  bool refine_principal_point = false;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 

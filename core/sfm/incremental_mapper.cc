@@ -392,7 +392,9 @@ class Mapper {
         static_cast<int>(model->images.size()) >= options_.min_images_for_intrinsics;
     ba.refine_focal = options_.refine_focal && intrinsics;
     ba.refine_k1 = ba.refine_k2 = options_.refine_distortion && intrinsics;
-    ba.refine_principal_point = options_.refine_principal_point && intrinsics && final;
+    ba.refine_principal_point =
+        options_.refine_principal_point && final &&
+        static_cast<int>(model->images.size()) >= options_.min_images_for_principal_point;
     ba.loss = final ? BundleAdjustmentLoss::kTrivial : BundleAdjustmentLoss::kCauchy;
     const BundleAdjustmentSummary summary = BundleAdjust(ba, cancel_, model);
     LOG_INFO << "sfm: global adjustment of " << model->images.size()

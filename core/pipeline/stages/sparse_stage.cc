@@ -191,6 +191,7 @@ StageResult SparseStage::Run(StageContext& context) const {
 
   IncrementalMapperOptions mapper_options;
   mapper_options.num_threads = context.options.num_threads;
+  mapper_options.refine_principal_point = context.options.refine_principal_point;
   MapperSummary summary;
   std::vector<Reconstruction> models =
       ReconstructIncrementally(input, mapper_options, context.progress, context.cancel, &summary);
