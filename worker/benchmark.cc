@@ -8,6 +8,7 @@
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
+#include "worker/cli_common.h"
 
 #include <algorithm>
 #include <filesystem>
@@ -204,17 +205,7 @@ int RunBenchmark(const std::vector<std::string>& args) {
     }
     ground_truth = std::move(*gt);
   }
-  Result<PipelineOptions> options = PipelineOptions();
-  if (!options_file.empty()) {
-    auto text = ReadFile(options_file);
-    if (!text.ok()) return (std::cerr << "reconduit: " << text.status() << "\n", 2);
-    options = ParsePipelineOptionsText(*text);
-  }
-  if (options.ok() && threads >= 0) {
-    nlohmann::json json = PipelineOptionsToJson(*options);
-    json["num_threads"] = threads;
-    options = ParsePipelineOptions(json);
-  }
+  const Result<PipelineOptions> options = LoadPipelineOptions(options_file, threads);
   if (!options.ok()) return (std::cerr << "reconduit: " << options.status() << "\n", 2);
   auto stages = CreatePipelineStages(until);
   if (!stages.ok()) return (std::cerr << "reconduit: " << stages.status() << "\n", 2);
@@ -222,13 +213,7 @@ int RunBenchmark(const std::vector<std::string>& args) {
   const fs::path work_dir =
       work.empty() ? fs::temp_directory_path() / "reconduit-benchmark" : fs::path(work);
   Workspace workspace;
-  for (const auto& entry : fs::directory_iterator(images)) {
-    const std::string name = entry.path().filename().string();
-    if (name.empty() || name[0] == '.' || !entry.is_regular_file()) continue;
-    workspace.images.push_back({entry.path(), name});
-  }
-  std::sort(workspace.images.begin(), workspace.images.end(),
-            [](const InputImage& a, const InputImage& b) { return a.name < b.name; });
+  workspace.images = ListInputImages(images);
   // Measure from scratch unless asked to reuse the finished stages of an earlier run (for
   // tuning a late stage: delete its folder under work/ and run again with --resume).
   if (!resume) fs::remove_all(work_dir / "reconduit", ec);

@@ -13,6 +13,7 @@
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
 #include "worker/benchmark.h"
+#include "worker/cli_common.h"
 
 #include <algorithm>
 #include <csignal>
@@ -133,30 +134,13 @@ int Reconstruct(const std::vector<std::string>& args) {
     return 2;
   }
 
-  Result<PipelineOptions> options = PipelineOptions();
-  if (!options_file.empty()) {
-    auto text = ReadFile(options_file);
-    if (!text.ok()) return UsageError(text.status().message());
-    options = ParsePipelineOptionsText(*text);
-    if (!options.ok()) return UsageError(options_file + ": " + options.status().message());
-  }
-  if (threads >= 0) {
-    nlohmann::json json = PipelineOptionsToJson(*options);
-    json["num_threads"] = threads;
-    options = ParsePipelineOptions(json);
-    if (!options.ok()) return UsageError(options.status().message());
-  }
+  const Result<PipelineOptions> options = LoadPipelineOptions(options_file, threads);
+  if (!options.ok()) return UsageError(options.status().message());
   auto stages = CreatePipelineStages(until);
   if (!stages.ok()) return UsageError(stages.status().message());
 
   Workspace workspace;
-  for (const auto& entry : fs::directory_iterator(images_dir)) {
-    const std::string name = entry.path().filename().string();
-    if (name.empty() || name[0] == '.' || !entry.is_regular_file()) continue;
-    workspace.images.push_back({entry.path(), name});
-  }
-  std::sort(workspace.images.begin(), workspace.images.end(),
-            [](const InputImage& a, const InputImage& b) { return a.name < b.name; });
+  workspace.images = ListInputImages(images_dir);
   if (workspace.images.empty()) {
     std::cerr << "reconduit: no files in '" << images_dir.string() << "'\n";
     return 2;
