@@ -1,6 +1,7 @@
 // Integration test of the reconduit-server binary: starts it as a child process on a free port
 // with a temporary data folder and checks its behaviour over real sockets.
 #include "server/http/test_client.h"
+#include "tests/server_process.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -18,131 +19,16 @@
 #include <unistd.h>
 #include <vector>
 
-extern char** environ;
-
 namespace reconduit::server {
 namespace {
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
-// A running reconduit-server child process.
-class ServerProcess {
+// The shared launcher, bound to this build's server binary.
+class ServerProcess : public testing_util::ServerProcess {
  public:
-  ServerProcess() = default;
-  ServerProcess(const ServerProcess&) = delete;
-  ServerProcess& operator=(const ServerProcess&) = delete;
-  ~ServerProcess() {
-    if (pid_ > 0 && !exited_) {
-      ::kill(pid_, SIGKILL);
-      int status = 0;
-      ::waitpid(pid_, &status, 0);
-    }
-    if (stdout_fd_ >= 0) ::close(stdout_fd_);
-  }
-
-  // Starts the binary with `args` and extra "NAME=value" environment entries; waits up to 10 s
-  // for the "listening on" line. Returns false (with the reason in `error`) otherwise.
-  bool Start(const std::vector<std::string>& args,
-             const fs::path& stderr_path,
-             const std::vector<std::string>& env = {}) {
-    stderr_path_ = stderr_path;
-    std::vector<std::string> argv_strings = {RECONDUIT_SERVER_BINARY};
-    argv_strings.insert(argv_strings.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (std::string& s : argv_strings) argv.push_back(s.data());
-    argv.push_back(nullptr);
-    std::vector<std::string> env_strings;
-    for (char** e = environ; *e != nullptr; ++e) env_strings.emplace_back(*e);
-    env_strings.insert(env_strings.end(), env.begin(), env.end());
-    std::vector<char*> envp;
-    for (std::string& s : env_strings) envp.push_back(s.data());
-    envp.push_back(nullptr);
-
-    int pipe_fds[2];
-    if (::pipe(pipe_fds) != 0) return Fail("pipe failed");
-    const std::string stderr_file = stderr_path.string();
-    pid_ = ::fork();
-    if (pid_ < 0) return Fail("fork failed");
-    if (pid_ == 0) {
-      ::dup2(pipe_fds[1], STDOUT_FILENO);
-      ::close(pipe_fds[0]);
-      ::close(pipe_fds[1]);
-      FILE* err = std::fopen(stderr_file.c_str(), "w");
-      if (err != nullptr) ::dup2(fileno(err), STDERR_FILENO);
-      ::execve(argv[0], argv.data(), envp.data());
-      ::_exit(127);
-    }
-    ::close(pipe_fds[1]);
-    stdout_fd_ = pipe_fds[0];
-
-    const std::string marker = "listening on http://127.0.0.1:";
-    const auto deadline = std::chrono::steady_clock::now() + 10s;
-    while (std::chrono::steady_clock::now() < deadline) {
-      pollfd pfd{stdout_fd_, POLLIN, 0};
-      if (::poll(&pfd, 1, 100) > 0) {
-        char buffer[256];
-        const ssize_t n = ::read(stdout_fd_, buffer, sizeof(buffer));
-        if (n <= 0) break;  // The child closed stdout: it exited.
-        stdout_.append(buffer, static_cast<std::size_t>(n));
-        const std::size_t at = stdout_.find(marker);
-        if (at != std::string::npos && stdout_.find('\n', at) != std::string::npos) {
-          port_ = std::stoi(stdout_.substr(at + marker.size()));
-          return true;
-        }
-      }
-    }
-    return Fail("no 'listening on' line; stdout: '" + stdout_ + "' stderr: '" + Stderr() + "'");
-  }
-
-  // Waits up to `timeout` for the process to exit; returns its exit status or -1.
-  int WaitForExit(std::chrono::milliseconds timeout) {
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    while (std::chrono::steady_clock::now() < deadline) {
-      int status = 0;
-      const pid_t result = ::waitpid(pid_, &status, WNOHANG);
-      if (result == pid_) {
-        exited_ = true;
-        if (WIFEXITED(status)) return WEXITSTATUS(status);
-        return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
-      }
-      std::this_thread::sleep_for(10ms);
-    }
-    return -1;
-  }
-
-  void Signal(int signal) { ::kill(pid_, signal); }
-  bool WaitUntilHealthy() {
-    for (int i = 0; i < 200; ++i) {
-      if (Fetch(port_, "GET", "/healthz").status == 200) return true;
-      std::this_thread::sleep_for(20ms);
-    }
-    return false;
-  }
-
-  std::string Stderr() const {
-    std::ifstream in(stderr_path_);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-  }
-  int port() const { return port_; }
-  const std::string& stdout_text() const { return stdout_; }
-  const std::string& error() const { return error_; }
-
- private:
-  bool Fail(std::string message) {
-    error_ = std::move(message);
-    return false;
-  }
-
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  int stdout_fd_ = -1;
-  int port_ = 0;
-  std::string stdout_;
-  std::string error_;
-  fs::path stderr_path_;
+  ServerProcess() : testing_util::ServerProcess(RECONDUIT_SERVER_BINARY) {}
 };
 
 class HttpServerTest : public ::testing::Test {

@@ -36,9 +36,11 @@ class ServerProcess {
     if (stdout_fd_ >= 0) ::close(stdout_fd_);
   }
 
-  // Starts the binary with `args`; waits up to 15 s for "listening on". False (and error())
-  // otherwise.
-  bool Start(const std::vector<std::string>& args, const std::filesystem::path& stderr_path) {
+  // Starts the binary with `args` and extra "NAME=value" environment entries; waits up to 15 s
+  // for the "listening on" line. False (the reason in error()) otherwise.
+  bool Start(const std::vector<std::string>& args,
+             const std::filesystem::path& stderr_path,
+             const std::vector<std::string>& env = {}) {
     using namespace std::chrono_literals;
     stderr_path_ = stderr_path;
     std::vector<std::string> argv_strings = {binary_};
@@ -46,6 +48,12 @@ class ServerProcess {
     std::vector<char*> argv;
     for (std::string& s : argv_strings) argv.push_back(s.data());
     argv.push_back(nullptr);
+    std::vector<std::string> env_strings;
+    for (char** e = environ; *e != nullptr; ++e) env_strings.emplace_back(*e);
+    env_strings.insert(env_strings.end(), env.begin(), env.end());
+    std::vector<char*> envp;
+    for (std::string& s : env_strings) envp.push_back(s.data());
+    envp.push_back(nullptr);
     int pipe_fds[2];
     if (::pipe(pipe_fds) != 0) return Fail("pipe failed");
     const std::string stderr_file = stderr_path.string();
@@ -57,7 +65,7 @@ class ServerProcess {
       ::close(pipe_fds[1]);
       FILE* err = std::fopen(stderr_file.c_str(), "a");
       if (err != nullptr) ::dup2(fileno(err), STDERR_FILENO);
-      ::execve(argv[0], argv.data(), environ);
+      ::execve(argv[0], argv.data(), envp.data());
       ::_exit(127);
     }
     ::close(pipe_fds[1]);
@@ -78,7 +86,7 @@ class ServerProcess {
         }
       }
     }
-    return Fail("no 'listening on' line; stderr: " + Stderr());
+    return Fail("no 'listening on' line; stdout: '" + stdout_ + "' stderr: '" + Stderr() + "'");
   }
 
   // SIGKILL and reap.
@@ -92,8 +100,15 @@ class ServerProcess {
 
   // SIGTERM; returns the exit status, or -1 when the process did not exit within `timeout`.
   int Terminate(std::chrono::milliseconds timeout) {
+    Signal(SIGTERM);
+    return WaitForExit(timeout);
+  }
+
+  void Signal(int signal) { ::kill(pid_, signal); }
+
+  // Waits up to `timeout` for the process to exit; returns its exit status or -1.
+  int WaitForExit(std::chrono::milliseconds timeout) {
     using namespace std::chrono_literals;
-    ::kill(pid_, SIGTERM);
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     while (std::chrono::steady_clock::now() < deadline) {
       int status = 0;
@@ -106,6 +121,16 @@ class ServerProcess {
     return -1;
   }
 
+  // Polls GET /healthz for up to 4 s.
+  bool WaitUntilHealthy() {
+    using namespace std::chrono_literals;
+    for (int i = 0; i < 200; ++i) {
+      if (reconduit::server::Fetch(port_, "GET", "/healthz").status == 200) return true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+
   std::string Stderr() const {
     std::ifstream in(stderr_path_);
     std::stringstream s;
@@ -113,6 +138,7 @@ class ServerProcess {
     return s.str();
   }
   int port() const { return port_; }
+  const std::string& stdout_text() const { return stdout_; }
   const std::string& error() const { return error_; }
 
  private:
