@@ -250,11 +250,15 @@ StageResult SparseStage::Run(StageContext& context) const {
         WritePointCloudPly(out / "sparse.ply", PointCloudFromReconstruction(best))}) {
     if (!s.ok()) return StageResult::Failed(s.message());
   }
+  // "registered" counts the photos of the delivered (largest) model only; photos in smaller
+  // disconnected models are counted apart.
   return StageResult::Success({{"models", models.size()},
-                               {"registered", summary.num_registered},
+                               {"registered", best.images.size()},
+                               {"registered_in_other_models",
+                                summary.num_registered - static_cast<int>(best.images.size())},
                                {"photos", input.images.size()},
-                               {"points", summary.num_points},
-                               {"mean_reprojection_error_px", summary.mean_reprojection_error_px},
+                               {"points", best.points.size()},
+                               {"mean_reprojection_error_px", best.MeanReprojectionError()},
                                {"cameras", calibration}});
 }
 
