@@ -31,9 +31,9 @@
 #include "core/util/cancel.h"
 #include "core/util/status.h"
 #include "server/storage/data_layout.h"
+#include "server/storage/job_store.h"
 #include "worker/pipeline_driver.h"
 #include "worker/progress_sink.h"
-#include "server/storage/job_store.h"
 
 #include <nlohmann/json.hpp>
 

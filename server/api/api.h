@@ -14,10 +14,10 @@
 #ifndef RECONDUIT_SERVER_API_API_H_
 #define RECONDUIT_SERVER_API_API_H_
 
-#include "server/storage/job_store.h"
 #include "server/http/http_metrics.h"
 #include "server/http/router.h"
 #include "server/storage/data_layout.h"
+#include "server/storage/job_store.h"
 
 #include <atomic>
 #include <cstdint>
