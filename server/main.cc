@@ -1,10 +1,11 @@
 // reconduit-server: the HTTP front of the reconstruction service (DESIGN.md sections 1 and 3).
 //
-// Parses the configuration (flags, then RECONDUIT_* environment variables), prepares the data
-// folder (opens <data>/reconduit.db, removes orphaned uploads, sweeps expired leases), builds
-// the route table (API routes from server/api, the web/ page as the fallback) and runs the HTTP
-// server until SIGINT or SIGTERM. Exit status: 0 after a graceful shutdown, 1 when the server
-// cannot start (port taken, data folder not writable, database unusable), 2 for bad flags.
+// Parses the configuration (flags, then RECONDUIT_* environment variables, then the --config
+// file), prepares the data folder (opens <data>/reconduit.db, removes orphaned uploads, sweeps
+// expired leases), builds the route table (API routes from server/api, the web/ page as the
+// fallback) and runs the HTTP server until SIGINT or SIGTERM. Exit status: 0 after a graceful
+// shutdown, 1 when the server cannot start (port taken, data folder not writable, database
+// unusable), 2 for bad flags or a bad configuration file.
 #include "core/util/logging.h"
 #include "server/api/api.h"
 #include "server/api/maintenance.h"
@@ -15,13 +16,18 @@
 #include <boost/program_options.hpp>
 
 #include <cctype>
+#include <cerrno>
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 
 #ifndef RECONDUIT_DEFAULT_WEB_DIR
 #define RECONDUIT_DEFAULT_WEB_DIR "web"
@@ -53,7 +59,47 @@ std::string EnvironmentName(const std::string& option) {
   return name;
 }
 
-// Returns the exit status to use when the program should stop now (help, bad flags).
+// Where each option's value came from, for error messages: "--port", "RECONDUIT_PORT" or
+// "'port' in FILE". Options left at their defaults are absent.
+using Sources = std::map<std::string, std::string>;
+
+void AddSources(const po::parsed_options& parsed,
+                const std::string& prefix,
+                const std::string& suffix,
+                bool env_names,
+                Sources* sources) {
+  for (const po::option& option : parsed.options) {
+    if (option.unregistered || option.string_key.empty()) continue;
+    const std::string& key = option.string_key;
+    sources->emplace(key, env_names ? EnvironmentName(key) : prefix + key + suffix);
+  }
+}
+
+// " (from X)" for an option set on the command line, in the environment or in the file.
+std::string SourceOf(const Sources& sources, const std::string& option) {
+  const auto it = sources.find(option);
+  return it == sources.end() ? "" : " (from " + it->second + ")";
+}
+
+// The option behind a field name in HttpServerOptions::Check's messages.
+std::string OptionOfField(const std::string& message) {
+  static const std::map<std::string, std::string> kFields = {
+      {"host", "host"},
+      {"port", "port"},
+      {"num_threads", "threads"},
+      {"max_connections", "max-connections"},
+      {"max_header_bytes", "max-header-bytes"},
+      {"max_body_bytes", "max-body-bytes"},
+      {"max_upload_bytes", "max-upload-bytes"},
+      {"shutdown_grace", "shutdown-grace"},
+      {"retry_after_seconds", "retry-after"},
+      {"bearer_token", "token"}};
+  const auto it = kFields.find(message.substr(0, message.find(' ')));
+  return it == kFields.end() ? "" : it->second;
+}
+
+// Returns the exit status to use when the program should stop now (help, bad flags, bad
+// configuration file).
 std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
   HttpServerOptions& http = config->http;
   std::string data_dir = config->data_dir.string();
@@ -64,16 +110,24 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
   std::int64_t shutdown_grace_s = 10;
   std::int64_t lease_sweep_s = config->lease_sweep_interval.count();
   reconduit::server::UploadLimits& limits = config->limits;
+  std::string config_file;
 
-  po::options_description options(
+  po::options_description general(
       "Usage: reconduit-server [options]\n\n"
       "Serves the Reconduit HTTP API and web page. Every option can also be set with an\n"
       "environment variable RECONDUIT_<OPTION> (upper case, '-' as '_'), e.g. "
-      "RECONDUIT_PORT=9000;\n"
-      "a flag on the command line wins over the environment.\n\nOptions");
+      "RECONDUIT_PORT=9000,\n"
+      "or as 'option = value' lines in the file given by --config (same names as the flags\n"
+      "without '--'; '#' starts a comment). A flag on the command line wins over the\n"
+      "environment, which wins over the config file, which wins over the defaults.\n\nOptions");
   // clang-format off
-  options.add_options()
+  general.add_options()
       ("help,h", "Print this help and exit.")
+      ("config", po::value(&config_file),
+       "Read options from this INI-style file of 'option = value' lines (env\n"
+       "RECONDUIT_CONFIG). An unknown option or a bad value in it is an error.");
+  po::options_description settings;
+  settings.add_options()
       ("host", po::value(&http.host)->default_value(http.host),
        "Address to listen on (0.0.0.0 for every IPv4 interface).")
       ("port", po::value(&http.port)->default_value(http.port),
@@ -120,26 +174,60 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
       ("lease-sweep-interval", po::value(&lease_sweep_s)->default_value(lease_sweep_s),
        "Seconds between sweeps that requeue jobs of workers that stopped heart-beating.");
   // clang-format on
+  po::options_description options;
+  options.add(general).add(settings);
 
   po::variables_map values;
+  Sources sources;
   try {
-    po::store(po::parse_command_line(argc, argv, options), values);
-    // Stored second, so a value already given on the command line is kept.
-    po::store(po::parse_environment(options,
-                                    [&options](const std::string& variable) -> std::string {
-                                      for (const auto& option : options.options()) {
-                                        const std::string& name = option->long_name();
-                                        if (name != "help" && EnvironmentName(name) == variable) {
-                                          return name;
-                                        }
-                                      }
-                                      return "";
-                                    }),
-              values);
+    const po::parsed_options command_line = po::parse_command_line(argc, argv, options);
+    po::store(command_line, values);
     if (values.count("help") != 0) {
       std::cout << options << "\n";
       return 0;
     }
+    AddSources(command_line, "--", "", false, &sources);
+  } catch (const po::error& e) {
+    std::cerr << "reconduit-server: " << e.what() << "\nTry --help.\n";
+    return 2;
+  }
+  try {
+    // Stored second, so a value already given on the command line is kept.
+    const po::parsed_options environment =
+        po::parse_environment(options, [&options](const std::string& variable) -> std::string {
+          for (const auto& option : options.options()) {
+            const std::string& name = option->long_name();
+            if (name != "help" && EnvironmentName(name) == variable) return name;
+          }
+          return "";
+        });
+    po::store(environment, values);
+    AddSources(environment, "", "", true, &sources);
+  } catch (const po::error& e) {
+    std::cerr << "reconduit-server: in the environment (RECONDUIT_*): " << e.what() << "\n";
+    return 2;
+  }
+  if (values.count("config") != 0) {
+    // Stored last: the command line and the environment win over the file.
+    const std::string path = values["config"].as<std::string>();
+    std::ifstream file(path);
+    if (!file) {
+      std::cerr << "reconduit-server: cannot read the config file '" << path
+                << "': " << std::strerror(errno) << "\n";
+      return 2;
+    }
+    try {
+      // Unknown keys (including "config" and "help") are errors: a typo must not pass
+      // silently.
+      const po::parsed_options parsed = po::parse_config_file(file, settings, false);
+      po::store(parsed, values);
+      AddSources(parsed, "'", "' in " + path, false, &sources);
+    } catch (const po::error& e) {
+      std::cerr << "reconduit-server: config file '" << path << "': " << e.what() << "\n";
+      return 2;
+    }
+  }
+  try {
     po::notify(values);
   } catch (const po::error& e) {
     std::cerr << "reconduit-server: " << e.what() << "\nTry --help.\n";
@@ -158,20 +246,23 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
 
   std::string error;
   if (!http.Check(&error)) {
-    std::cerr << "reconduit-server: invalid configuration: " << error << "\n";
+    std::cerr << "reconduit-server: invalid configuration: " << error
+              << SourceOf(sources, OptionOfField(error)) << "\n";
     return 2;
   }
-  const char* bad_limit = limits.max_photos < 1        ? "max-photos must be >= 1"
-                          : limits.max_pixels < 1      ? "max-pixels must be >= 1"
-                          : limits.max_photo_bytes < 1 ? "max-photo-bytes must be >= 1"
-                          : limits.max_concurrent_uploads < 1
-                              ? "max-concurrent-uploads must be >= 1"
-                          : limits.max_queued_jobs < 1 ? "max-queued-jobs must be >= 1"
-                          : lease_sweep_s < 1          ? "lease-sweep-interval must be >= 1"
-                                                       : nullptr;
-  if (bad_limit != nullptr) {
-    std::cerr << "reconduit-server: invalid configuration: " << bad_limit << "\n";
-    return 2;
+  const std::pair<bool, const char*> limit_checks[] = {
+      {limits.max_photos >= 1, "max-photos"},
+      {limits.max_pixels >= 1, "max-pixels"},
+      {limits.max_photo_bytes >= 1, "max-photo-bytes"},
+      {limits.max_concurrent_uploads >= 1, "max-concurrent-uploads"},
+      {limits.max_queued_jobs >= 1, "max-queued-jobs"},
+      {lease_sweep_s >= 1, "lease-sweep-interval"}};
+  for (const auto& [ok, option] : limit_checks) {
+    if (!ok) {
+      std::cerr << "reconduit-server: invalid configuration: " << option << " must be >= 1"
+                << SourceOf(sources, option) << "\n";
+      return 2;
+    }
   }
   return std::nullopt;
 }

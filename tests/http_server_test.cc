@@ -6,14 +6,17 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <arpa/inet.h>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
 #include <sstream>
 #include <string>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
@@ -54,6 +57,22 @@ class HttpServerTest : public ::testing::Test {
 
   fs::path dir_;
 };
+
+// A TCP port that was free a moment ago (bound to port 0, read back, closed).
+int FreePort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t length = sizeof(address);
+  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
+    if (fd >= 0) ::close(fd);
+    return -1;
+  }
+  ::close(fd);
+  return ntohs(address.sin_port);
+}
 
 nlohmann::json Json(const TestResponse& response) {
   return nlohmann::json::parse(response.body, nullptr, /*allow_exceptions=*/false);
@@ -174,6 +193,112 @@ TEST_F(HttpServerTest, BadFlagsExitWithUsageError) {
   EXPECT_FALSE(server.Start({"--threads", "0", "--port", "0"}, dir_ / "stderr.txt"));
   EXPECT_EQ(server.WaitForExit(5s), 2);
   EXPECT_NE(server.Stderr().find("num_threads"), std::string::npos) << server.Stderr();
+}
+
+TEST_F(HttpServerTest, ConfigFileSetsOptionsUnderTheEnvironmentAndFlags) {
+  const int file_port = FreePort();
+  ASSERT_GT(file_port, 0);
+  const fs::path config = dir_ / "server.conf";
+  std::ofstream(config) << "# reconduit-server settings\n"
+                        << "host = 127.0.0.1\n"
+                        << "port = " << file_port << "\n"
+                        << "data = " << (dir_ / "data").string() << "\n"
+                        << "web = " << (dir_ / "web").string() << "\n"
+                        << "threads = 2   # trailing comment\n"
+                        << "token = file-token\n"
+                        << "max-upload-bytes = 1000\n";
+  auto status_with = [](int port, const std::string& token) {
+    return Fetch(port, "GET", "/", {{"Authorization", "Bearer " + token}}).status;
+  };
+  // A 2000-byte upload (not a valid form): 413 when over the upload limit, 400 otherwise.
+  auto upload_status = [](int port, const std::string& token) {
+    TestClient client(port);
+    if (!client.Write("POST /api/v1/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " + token +
+                      "\r\nContent-Type: multipart/form-data; boundary=b\r\n"
+                      "Content-Length: 2000\r\n\r\n" +
+                      std::string(2000, 'x'))) {
+      return 0u;
+    }
+    return client.Read().status;
+  };
+  {
+    // The file alone: its port, token and upload limit apply.
+    ServerProcess server;
+    ASSERT_TRUE(server.Start({"--config", config.string()}, dir_ / "stderr1.txt"))
+        << server.error();
+    ASSERT_TRUE(server.WaitUntilHealthy()) << server.Stderr();
+    EXPECT_EQ(server.port(), file_port);
+    EXPECT_EQ(Fetch(server.port(), "GET", "/").status, 401u);
+    EXPECT_EQ(status_with(server.port(), "file-token"), 200u);
+    EXPECT_EQ(upload_status(server.port(), "file-token"), 413u);
+    EXPECT_EQ(server.Terminate(5s), 0) << server.Stderr();
+  }
+  {
+    // RECONDUIT_CONFIG names the file; the environment wins over it, flags win over both.
+    ServerProcess server;
+    ASSERT_TRUE(server.Start({"--port", "0", "--token", "flag-token"}, dir_ / "stderr2.txt",
+                             {"RECONDUIT_CONFIG=" + config.string(), "RECONDUIT_TOKEN=env-token",
+                              "RECONDUIT_MAX_UPLOAD_BYTES=100000"}))
+        << server.error();
+    ASSERT_TRUE(server.WaitUntilHealthy()) << server.Stderr();
+    EXPECT_NE(server.port(), file_port);
+    EXPECT_EQ(status_with(server.port(), "flag-token"), 200u);
+    EXPECT_EQ(status_with(server.port(), "env-token"), 401u);
+    EXPECT_EQ(status_with(server.port(), "file-token"), 401u);
+    // 2000 bytes are under the environment's limit.
+    EXPECT_EQ(upload_status(server.port(), "flag-token"), 400u);
+    EXPECT_EQ(server.Terminate(5s), 0) << server.Stderr();
+  }
+  {
+    ServerProcess server;
+    ASSERT_TRUE(server.Start({"--config", config.string(), "--port", "0"}, dir_ / "stderr3.txt",
+                             {"RECONDUIT_TOKEN=env-token"}))
+        << server.error();
+    ASSERT_TRUE(server.WaitUntilHealthy()) << server.Stderr();
+    EXPECT_EQ(status_with(server.port(), "env-token"), 200u);
+    EXPECT_EQ(status_with(server.port(), "file-token"), 401u);
+    EXPECT_EQ(upload_status(server.port(), "env-token"), 413u);
+    EXPECT_EQ(server.Terminate(5s), 0) << server.Stderr();
+  }
+}
+
+TEST_F(HttpServerTest, BadConfigFileExitsWithUsageErrorNamingFileAndKey) {
+  struct Case {
+    std::string text;
+    std::vector<std::string> expected;  // In the error message, besides the file name.
+  };
+  const std::vector<Case> cases = {
+      {"port = 0\ncolour = blue\n", {"unrecognised option 'colour'"}},
+      {"port = not-a-port\n", {"'not-a-port'", "'port'"}},
+      {"port = 0\nthreads = 0\n", {"num_threads must be in [1, 64]", "'threads' in "}},
+      {"port = 0\nport = 1\n", {"'port' cannot be specified more than once"}},
+      {"[server]\nport = 0\n", {"unrecognised option 'server.port'"}},
+      {"port = 0\nconfig = other.conf\n", {"unrecognised option 'config'"}},
+      {"port 0\n", {"invalid line 'port 0'"}},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    SCOPED_TRACE(cases[i].text);
+    const fs::path config = dir_ / ("bad" + std::to_string(i) + ".conf");
+    std::ofstream(config) << cases[i].text;
+    ServerProcess server;
+    EXPECT_FALSE(server.Start({"--config", config.string(), "--data", (dir_ / "data").string()},
+                              dir_ / ("stderr" + std::to_string(i) + ".txt")));
+    EXPECT_EQ(server.WaitForExit(5s), 2);
+    const std::string error = server.Stderr();
+    EXPECT_NE(error.find(config.string()), std::string::npos) << error;
+    for (const std::string& expected : cases[i].expected) {
+      EXPECT_NE(error.find(expected), std::string::npos) << expected << " in " << error;
+    }
+  }
+  // An unreadable file (missing here) is the same kind of error.
+  ServerProcess server;
+  const fs::path missing = dir_ / "missing.conf";
+  EXPECT_FALSE(server.Start({"--port", "0"}, dir_ / "stderr-missing.txt",
+                            {"RECONDUIT_CONFIG=" + missing.string()}));
+  EXPECT_EQ(server.WaitForExit(5s), 2);
+  EXPECT_NE(server.Stderr().find("cannot read the config file '" + missing.string() + "'"),
+            std::string::npos)
+      << server.Stderr();
 }
 
 }  // namespace

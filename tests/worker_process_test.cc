@@ -1,7 +1,10 @@
 // Starts real reconduit-worker processes on a temporary data folder whose jobs the test inserted
 // through the JobStore, and checks what they do to the jobs: normal processing, kill -9 in the
-// middle of a stage (the next worker resumes), two workers sharing a queue (each job once), and
-// SIGTERM during a job (exit 0 quickly, job back in the queue, finished by the next worker).
+// middle of a stage (the next worker resumes), kill -9 at ten moments of a job's life (every job
+// finishes once, with a valid result.zip), two workers sharing a queue (each job once), SIGTERM
+// during a job (exit 0 quickly, job back in the queue, finished by the next worker), and the
+// configuration file.
+#include "core/io/file_util.h"
 #include "server/storage/data_layout.h"
 #include "server/storage/job_store.h"
 #include "worker/worker_test_util.h"
@@ -17,6 +20,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <sys/types.h>
@@ -24,6 +29,8 @@
 #include <thread>
 #include <unistd.h>
 #include <vector>
+
+extern char** environ;
 
 #ifndef RECONDUIT_WORKER_BINARY
 #error "RECONDUIT_WORKER_BINARY must name the reconduit-worker executable"
@@ -67,12 +74,27 @@ const fs::path& Photos(const PhotoSet& set) {
 }
 
 // A running reconduit-worker; its stdout and stderr go to a log file. Killed on destruction.
+// Started with --data `data` and --id `id` (none when empty), then `extra`; `env` adds
+// "NAME=value" entries to the inherited environment.
 class WorkerProcess {
  public:
-  WorkerProcess(const fs::path& data, const std::string& id, std::vector<std::string> extra)
-      : log_path_(data / ("worker-" + id + ".log")) {
-    std::vector<std::string> args = {RECONDUIT_WORKER_BINARY, "--data", data.string(), "--id", id};
+  WorkerProcess(const fs::path& data,
+                const std::string& id,
+                std::vector<std::string> extra,
+                const std::vector<std::string>& env = {})
+      : log_path_(data / ("worker-" + (id.empty() ? std::string("anonymous") : id) + ".log")) {
+    std::vector<std::string> args = {RECONDUIT_WORKER_BINARY, "--data", data.string()};
+    if (!id.empty()) args.insert(args.end(), {"--id", id});
     args.insert(args.end(), extra.begin(), extra.end());
+    std::vector<std::string> env_strings;
+    for (char** e = environ; *e != nullptr; ++e) env_strings.emplace_back(*e);
+    env_strings.insert(env_strings.end(), env.begin(), env.end());
+    std::vector<char*> envp;
+    for (std::string& entry : env_strings) envp.push_back(entry.data());
+    envp.push_back(nullptr);
+    std::vector<char*> argv;
+    for (std::string& arg : args) argv.push_back(arg.data());
+    argv.push_back(nullptr);
     pid_ = fork();
     THROW_CHECK_GE(pid_, 0) << "fork failed";
     if (pid_ == 0) {
@@ -80,10 +102,7 @@ class WorkerProcess {
       if (fd < 0) _exit(127);
       dup2(fd, STDOUT_FILENO);
       dup2(fd, STDERR_FILENO);
-      std::vector<char*> argv;
-      for (std::string& arg : args) argv.push_back(arg.data());
-      argv.push_back(nullptr);
-      execv(argv[0], argv.data());
+      execve(argv[0], argv.data(), envp.data());
       _exit(127);
     }
   }
@@ -336,6 +355,275 @@ TEST_F(WorkerProcessTest, SigtermMidJobReleasesItAndTheNextWorkerFinishesIt) {
   const std::vector<std::string> events = Events(id);
   EXPECT_EQ(Count(events, "ingest|stage 'ingest' started"), 1) << ::testing::PrintToString(events);
   EXPECT_EQ(Count(events, "stage 'ingest' finished in an earlier run"), 1);
+}
+
+// The stages a run can resume, in pipeline order (packaging always runs again).
+const std::vector<std::string> kResumableStages = {"ingest", "features", "pairs", "matching",
+                                                   "sparse"};
+
+// One moment of a job's life at which its worker dies by SIGKILL.
+struct KillMoment {
+  std::string name;
+  // RECONDUIT_WORKER_CRASH_AT: the worker kills itself there, for moments an outside kill
+  // cannot aim at (between two lines of the runner). Empty: the test sends SIGKILL itself
+  // once `stage` has run for `after`.
+  std::string crash_at;
+  std::string stage;
+  std::chrono::milliseconds after{0};
+  // What the dead worker leaves: the first `finished_on_disk` resumable stages have their
+  // stage.json marker (so the next run skips them), and whether result.zip is in place.
+  int finished_on_disk = 0;
+  bool result_zip = false;
+};
+
+// Kills a worker at ten moments spread over a job's life, one job per moment (a job may run
+// max_attempts = 3 times, so each job dies once): right after the claim; between a stage's
+// marker on disk and the store hearing of it (ingest, features, matching); in the middle of
+// features, matching and sparse; when packaging starts; after result.zip is renamed into place
+// but before the store knows; just before FinishSucceeded. Each time a new worker takes the job
+// over once the dead worker's lease runs out, and the job must end succeeded exactly once:
+// claimed by the rescuer, attempts 1, the finished stages skipped and the others run once,
+// every stage recorded, one result.zip whose manifest matches its entries and the output
+// folder, and no job lost or duplicated across the queue.
+TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
+  const std::vector<KillMoment> moments = {
+      {"right after the claim", "claimed", "", 0ms, 0, false},
+      {"ingest's marker written, store not told", "stage-done:ingest", "", 0ms, 1, false},
+      {"in the middle of features", "", "features", 400ms, 1, false},
+      {"features' marker written, store not told", "stage-done:features", "", 0ms, 2, false},
+      {"in the middle of matching", "", "matching", 250ms, 3, false},
+      {"matching's marker written, store not told", "stage-done:matching", "", 0ms, 4, false},
+      {"in the middle of sparse", "", "sparse", 100ms, 4, false},
+      {"packaging started", "stage-started:package", "", 0ms, 5, false},
+      {"result.zip renamed into place, store not told", "stage-done:package", "", 0ms, 5, true},
+      {"result.zip checked, FinishSucceeded not called", "before-finish", "", 0ms, 5, true},
+  };
+  // All jobs queued from the start: each doomed worker and each rescuer takes the oldest queued
+  // job, and nothing may take a job that is not its turn.
+  std::vector<std::string> ids;
+  for (std::size_t i = 0; i < moments.size(); ++i) ids.push_back(CreateJob(kSmall));
+
+  for (std::size_t i = 0; i < moments.size(); ++i) {
+    const KillMoment& moment = moments[i];
+    const std::string& id = ids[i];
+    SCOPED_TRACE("moment " + std::to_string(i) + ": " + moment.name);
+    const std::string doomed_id = "doomed-" + std::to_string(i);
+    const std::string rescuer_id = "rescuer-" + std::to_string(i);
+    std::vector<std::string> env;
+    if (!moment.crash_at.empty()) env.push_back("RECONDUIT_WORKER_CRASH_AT=" + moment.crash_at);
+    {
+      WorkerProcess doomed(layout_.root(), doomed_id, {"--poll", "0.1", "--lease", "1"}, env);
+      if (moment.crash_at.empty()) {
+        ASSERT_TRUE(WaitForStage(id, moment.stage, 40s)) << Describe(id) << doomed.Log();
+        std::this_thread::sleep_for(moment.after);
+        doomed.Signal(SIGKILL);
+      }
+      const std::optional<int> status = doomed.Wait(40s);
+      ASSERT_TRUE(status.has_value()) << Describe(id) << doomed.Log();
+      ASSERT_TRUE(WIFSIGNALED(*status) && WTERMSIG(*status) == SIGKILL) << doomed.Log();
+      if (!moment.crash_at.empty()) {
+        ASSERT_THAT(doomed.Log(),
+                    HasSubstr("RECONDUIT_WORKER_CRASH_AT=" + moment.crash_at + " reached"));
+      }
+    }
+    // The kill landed where it was meant to: the job is still the dead worker's, with exactly
+    // the expected stages finished on disk.
+    Job job = Get(id);
+    ASSERT_EQ(job.state, JobState::kRunning) << Describe(id);
+    ASSERT_EQ(job.lease_owner, doomed_id);
+    for (int s = 0; s < static_cast<int>(kResumableStages.size()); ++s) {
+      const fs::path marker = layout_.WorkDir(id) / kResumableStages[s] / "stage.json";
+      EXPECT_EQ(fs::exists(marker), s < moment.finished_on_disk) << marker;
+    }
+    EXPECT_EQ(fs::exists(layout_.ResultZip(id)), moment.result_zip);
+    if (moment.stage == "sparse") {
+      // What a kill inside an atomic write of a deliverable leaves (core/io writes
+      // "<file>.tmp-<pid>-<random>", then renames it): it must not reach result.zip.
+      std::ofstream(layout_.OutputDir(id) / "sparse.ply.tmp-4242-17") << "ply\nformat ascii";
+    }
+    for (std::size_t later = i + 1; later < ids.size(); ++later) {
+      ASSERT_EQ(Get(ids[later]).state, JobState::kQueued) << "the doomed worker took another job";
+    }
+
+    // The rescuer starts once the dead worker's lease has run out: its first sweep requeues the
+    // job, which keeps its place at the head of the queue. --once: exactly one job.
+    ASSERT_TRUE(job.lease_until_ms.has_value());
+    const auto lease_end =
+        std::chrono::system_clock::time_point(std::chrono::milliseconds(*job.lease_until_ms));
+    std::this_thread::sleep_until(lease_end + 50ms);
+    WorkerProcess rescuer(layout_.root(), rescuer_id, {"--poll", "0.1", "--lease", "5", "--once"});
+    const std::optional<int> rescuer_status = rescuer.Wait(60s);
+    ASSERT_TRUE(rescuer_status.has_value()) << Describe(id) << rescuer.Log();
+    EXPECT_TRUE(WIFEXITED(*rescuer_status) && WEXITSTATUS(*rescuer_status) == 0) << rescuer.Log();
+
+    job = Get(id);
+    ASSERT_EQ(job.state, JobState::kSucceeded) << Describe(id) << rescuer.Log();
+    EXPECT_EQ(job.attempts, 1) << "the killed run is one lost attempt";
+    EXPECT_TRUE(job.lease_owner.empty());
+    EXPECT_TRUE(job.error.empty()) << job.error;
+    EXPECT_EQ(job.finished_stages, kResumableStages);
+    EXPECT_EQ(job.counts.value("images", 0), kSmall.count);
+    EXPECT_EQ(job.counts.value("registered", 0), kSmall.count);
+
+    // The rescuer's run: after its "started by" line, the stages finished on disk are skipped
+    // and every other stage (and packaging) runs exactly once.
+    const std::vector<std::string> events = Events(id);
+    const std::string all = ::testing::PrintToString(events);
+    EXPECT_EQ(Count(events, "started by worker"), 2) << all;
+    EXPECT_EQ(Count(events, "started by worker '" + doomed_id + "'"), 1) << all;
+    EXPECT_EQ(Count(events, "(lease expired); requeued for run 2"), 1) << all;
+    EXPECT_EQ(Count(events, "|succeeded"), 1) << all;
+    const auto rescue_start =
+        std::find_if(events.begin(), events.end(), [&](const std::string& event) {
+          return event.find("started by worker '" + rescuer_id + "'") != std::string::npos;
+        });
+    ASSERT_NE(rescue_start, events.end()) << all;
+    const std::vector<std::string> rescue(rescue_start, events.end());
+    for (int s = 0; s < static_cast<int>(kResumableStages.size()); ++s) {
+      const std::string& stage = kResumableStages[s];
+      const bool skipped = s < moment.finished_on_disk;
+      EXPECT_EQ(Count(rescue, "stage '" + stage + "' finished in an earlier run"), skipped ? 1 : 0)
+          << stage << "\n"
+          << all;
+      EXPECT_EQ(Count(rescue, stage + "|stage '" + stage + "' started"), skipped ? 0 : 1)
+          << stage << "\n"
+          << all;
+    }
+    EXPECT_EQ(Count(rescue, "package|stage 'package' started"), 1) << all;
+
+    // One result.zip, the one the store describes, whose manifest matches its entries and the
+    // output folder, with nothing left over from the killed run.
+    const fs::path zip = layout_.ResultZip(id);
+    ASSERT_TRUE(fs::exists(zip));
+    EXPECT_FALSE(fs::exists(zip.string() + ".tmp"));
+    ASSERT_TRUE(job.result_bytes.has_value());
+    EXPECT_EQ(*job.result_bytes, static_cast<std::int64_t>(fs::file_size(zip)));
+    const Result<std::string> sha = Sha256OfFile(zip);
+    ASSERT_TRUE(sha.ok());
+    EXPECT_EQ(job.result_sha256, *sha);
+    const std::map<std::string, std::string> entries = testing_util::ReadZipEntries(zip);
+    ASSERT_TRUE(entries.count("manifest.json"));
+    const nlohmann::json manifest = nlohmann::json::parse(entries.at("manifest.json"));
+    std::set<std::string> listed = {"manifest.json"};
+    for (const nlohmann::json& file : manifest.at("files")) {
+      const std::string name = file.at("name");
+      listed.insert(name);
+      ASSERT_TRUE(entries.count(name)) << name;
+      EXPECT_EQ(file.at("bytes").get<std::size_t>(), entries.at(name).size()) << name;
+      EXPECT_EQ(file.at("sha256").get<std::string>(), Sha256Hex(entries.at(name))) << name;
+    }
+    std::set<std::string> in_zip, in_output;
+    for (const auto& [name, bytes] : entries) in_zip.insert(name);
+    for (const auto& entry : fs::recursive_directory_iterator(layout_.OutputDir(id))) {
+      if (entry.is_regular_file()) {
+        in_output.insert(fs::relative(entry.path(), layout_.OutputDir(id)).generic_string());
+      }
+    }
+    EXPECT_EQ(in_zip, listed);
+    EXPECT_EQ(in_output, listed);
+    for (const std::string& name : listed) {
+      EXPECT_EQ(name.find(".tmp"), std::string::npos) << "a leftover of the killed run: " << name;
+    }
+    for (const char* expected : {"report.json", "cameras.json", "sparse.ply",
+                                 "report/similarity.png", "report/match_graph.png"}) {
+      EXPECT_TRUE(listed.count(expected)) << expected;
+    }
+    const nlohmann::json report = nlohmann::json::parse(entries.at("report.json"));
+    std::vector<std::string> reported;
+    for (const nlohmann::json& stage : report.at("stages")) reported.push_back(stage.at("name"));
+    EXPECT_EQ(reported, kResumableStages);
+  }
+
+  // Nothing lost, nothing duplicated: the same ten jobs, all succeeded, each started by its
+  // doomed worker and its rescuer only.
+  JobListQuery query;
+  query.limit = 100;
+  const Result<JobPage> page = store_->ListJobs(query);
+  ASSERT_TRUE(page.ok());
+  EXPECT_EQ(page->total, static_cast<std::int64_t>(ids.size()));
+  std::set<std::string> listed_ids;
+  for (const Job& job : page->jobs) {
+    listed_ids.insert(job.id);
+    EXPECT_EQ(job.state, JobState::kSucceeded) << job.id;
+  }
+  EXPECT_EQ(listed_ids, std::set<std::string>(ids.begin(), ids.end()));
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::vector<std::string> events = Events(ids[i]);
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      const long expected = k == i ? 1 : 0;
+      EXPECT_EQ(Count(events, "started by worker 'doomed-" + std::to_string(k) + "'"), expected);
+      EXPECT_EQ(Count(events, "started by worker 'rescuer-" + std::to_string(k) + "'"), expected);
+    }
+  }
+}
+
+TEST_F(WorkerProcessTest, ConfigFileSettingsUnderTheEnvironmentAndFlags) {
+  const fs::path config = dir_.path() / "worker.conf";
+  std::ofstream(config) << "# reconduit-worker settings\n"
+                        << "id = from-file\n"
+                        << "lease = 2.5\n"
+                        << "poll = 0.1   # seconds\n"
+                        << "until = ingest\n"
+                        << "once = true\n";
+  // The file alone (no --id): its id, lease, --until and --once apply to a real job.
+  const std::string id = CreateJob(kSmall);
+  {
+    WorkerProcess worker(layout_.root(), "", {"--config", config.string()});
+    const std::optional<int> status = worker.Wait(30s);
+    ASSERT_TRUE(status.has_value()) << "once = true must make it exit\n" << worker.Log();
+    EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << worker.Log();
+    EXPECT_THAT(worker.Log(), HasSubstr("reconduit-worker from-file: data folder"));
+    EXPECT_THAT(worker.Log(), HasSubstr("lease 2.5 s, stages up to ingest"));
+    const Job job = Get(id);
+    EXPECT_EQ(job.state, JobState::kSucceeded) << Describe(id);
+    EXPECT_THAT(job.finished_stages, ElementsAre("ingest"));
+    EXPECT_EQ(Count(Events(id), "started by worker 'from-file'"), 1);
+  }
+  // RECONDUIT_CONFIG names the file; the environment wins over it and a flag over both.
+  {
+    WorkerProcess worker(layout_.root(), "flag-id", {"--lease", "4"},
+                         {"RECONDUIT_CONFIG=" + config.string(), "RECONDUIT_LEASE_SECONDS=3",
+                          "RECONDUIT_UNTIL_STAGE=features"});
+    const std::optional<int> status = worker.Wait(10s);
+    ASSERT_TRUE(status.has_value()) << worker.Log();
+    EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << worker.Log();
+    EXPECT_THAT(worker.Log(), HasSubstr("reconduit-worker flag-id: data folder"));
+    EXPECT_THAT(worker.Log(), HasSubstr("lease 4 s, stages up to features"));
+  }
+}
+
+TEST_F(WorkerProcessTest, BadConfigFileExitsWithStatus2NamingFileAndKey) {
+  struct Case {
+    std::string text;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {"lease = 5\ncolour = blue\n", "unrecognised option 'colour'"},
+      {"lease = soon\n", "invalid value 'soon' for 'lease'"},
+      {"until = everything\n", "invalid value 'everything' for 'until'"},
+      {"once = perhaps\n", "invalid value 'perhaps' for 'once'"},
+      {"poll = 1\npoll = 2\n", "'poll' is set more than once"},
+      {"[worker]\nlease = 5\n", "unrecognised option 'worker.lease'"},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    SCOPED_TRACE(cases[i].text);
+    const fs::path config = dir_.path() / ("bad" + std::to_string(i) + ".conf");
+    std::ofstream(config) << cases[i].text;
+    WorkerProcess worker(layout_.root(), "bad" + std::to_string(i),
+                         {"--config", config.string(), "--once"});
+    const std::optional<int> status = worker.Wait(10s);
+    ASSERT_TRUE(status.has_value()) << worker.Log();
+    EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 2) << worker.Log();
+    EXPECT_THAT(worker.Log(), HasSubstr("config file '" + config.string() + "'"));
+    EXPECT_THAT(worker.Log(), HasSubstr(cases[i].expected));
+  }
+  const fs::path missing = dir_.path() / "missing.conf";
+  WorkerProcess worker(layout_.root(), "missing", {"--once"},
+                       {"RECONDUIT_CONFIG=" + missing.string()});
+  const std::optional<int> status = worker.Wait(10s);
+  ASSERT_TRUE(status.has_value()) << worker.Log();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 2) << worker.Log();
+  EXPECT_THAT(worker.Log(), HasSubstr("cannot read the config file '" + missing.string() + "'"));
 }
 
 }  // namespace

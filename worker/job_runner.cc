@@ -105,6 +105,40 @@ std::string WithSuffix(const std::string& name, int n) {
   return name.substr(0, dot) + suffix + name.substr(dot);
 }
 
+// The temporary file of an atomic write in core/io ("<name>.tmp-<pid>-<random>", renamed to
+// <name> once complete). One in output/ means a run died in the middle of writing a deliverable.
+bool IsInterruptedWrite(std::string_view name) {
+  const std::size_t at = name.rfind(".tmp-");
+  if (at == std::string_view::npos || at == 0) return false;
+  const std::string_view rest = name.substr(at + 5);  // "<pid>-<random>"
+  const std::size_t dash = rest.find('-');
+  if (dash == std::string_view::npos || dash == 0 || dash + 1 == rest.size()) return false;
+  const auto digits = [](std::string_view text) {
+    return std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  return digits(rest.substr(0, dash)) && digits(rest.substr(dash + 1));
+}
+
+// Removes the half-written deliverables a killed run left in `output_dir`: packaging packs
+// every file of the folder, and the API lists them, so they would be delivered as results.
+// Returns how many were removed.
+int RemoveInterruptedWrites(const fs::path& output_dir) {
+  std::vector<fs::path> leftovers;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(output_dir, ec), end; !ec && it != end;
+       it.increment(ec)) {
+    if (!it->is_symlink(ec) && it->is_regular_file(ec) &&
+        IsInterruptedWrite(it->path().filename().string())) {
+      leftovers.push_back(it->path());
+    }
+  }
+  int removed = 0;
+  for (const fs::path& path : leftovers) {
+    if (fs::remove(path, ec)) ++removed;
+  }
+  return removed;
+}
+
 // A heartbeat thread: calls `beat` every `interval` until destroyed.
 class HeartbeatThread {
  public:
@@ -318,6 +352,10 @@ JobRunReport JobRunner::Run(const Job& job) {
     }
   };
 
+  auto moment = [this](const std::string& name) {
+    if (options_.on_moment) options_.on_moment(name);
+  };
+
   // What the job's run leaves behind for the final decision.
   std::string current_stage;
   nlohmann::json counts = nlohmann::json::object();
@@ -425,6 +463,10 @@ JobRunReport JobRunner::Run(const Job& job) {
       fs::create_directories(dir, ec);
       if (ec) return fail("", "cannot create " + dir.string() + ": " + ec.message());
     }
+    if (const int removed = RemoveInterruptedWrites(pipeline_job.output_dir); removed > 0) {
+      LOG_WARNING << "removed " << removed
+                  << " half-written file(s) of an interrupted run from output/";
+    }
 
     const std::set<std::string> finished_in_store(job.finished_stages.begin(),
                                                   job.finished_stages.end());
@@ -453,6 +495,7 @@ JobRunReport JobRunner::Run(const Job& job) {
                      "stage " + Quote(stage.name) + " started: " + stage.title, overall});
       sink.StageStarted(stage.name, overall,
                         {{"progress", 0.0}, {"title", stage.title}, {"status", "running"}});
+      moment("stage-started:" + stage.name);
     };
     callbacks.on_progress = [&](const StagePlan& stage, double fraction, std::size_t done,
                                 std::size_t total, const std::string& message, double overall) {
@@ -495,6 +538,7 @@ JobRunReport JobRunner::Run(const Job& job) {
           text += ": " + outcome.message;
         }
       }
+      if (outcome.success && !outcome.resumed) moment("stage-done:" + outcome.name);
       sink.AddEvent({outcome.name, level, text, overall});
       sink.StageEnded(outcome.name, overall, std::move(patch), stage_counts);
       // Resumable stages whose output is complete become resumable for later runs in the
@@ -540,6 +584,7 @@ JobRunReport JobRunner::Run(const Job& job) {
         }
         LOG_INFO << "job " << job.id << " succeeded in " << FormatSeconds(outcome.seconds)
                  << ": result.zip " << output.result_bytes << " bytes";
+        moment("before-finish");
         return finish_with(JobRunOutcome::kSucceeded, "", "",
                            [&] { return store_.FinishSucceeded(job.id, worker, output); });
       }

@@ -8,7 +8,9 @@
 //      default) whatever the stage is doing, and the cancel token's probe heart-beats when a
 //      stage polls it (at most once per `cancel_check_interval`), so a cancel request reaches
 //      the stage within about that interval;
-//   3. runs the pipeline (RunJobPipeline), resuming after the stages whose work/<stage>/
+//   3. removes from output/ the half-written files of an interrupted earlier run (temporary
+//      files of atomic writes, which packaging would otherwise deliver), then
+//      runs the pipeline (RunJobPipeline), resuming after the stages whose work/<stage>/
 //      stage.json markers say they finished, and mirrors it into the store: stage and progress
 //      (throttled), per-stage progress, time and memory, counts, MarkStageFinished for each
 //      resumable stage whose output is complete (also for stages resumed from disk that the
@@ -40,6 +42,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <string>
 #include <string_view>
@@ -68,6 +71,15 @@ struct JobRunnerOptions {
   int default_num_threads = 0;
   // The stages to run; empty for CreatePipelineStages() (the full pipeline).
   StageListFactory make_stages;
+  // Test hook for crash-safety tests (reconduit-worker's RECONDUIT_WORKER_CRASH_AT): called
+  // on the thread running the job at these moments of a run, named:
+  //   "stage-started:<stage>"  the store has heard of the stage's start; it has not run yet
+  //   "stage-done:<stage>"     the stage succeeded and its work/<stage>/stage.json marker is on
+  //                            disk; the store has not recorded it yet ("stage-done:package":
+  //                            result.zip is in place)
+  //   "before-finish"          result.zip is checked; FinishSucceeded comes next
+  // Empty: none.
+  std::function<void(const std::string& moment)> on_moment;
 
   // False, with a message naming the field, for invalid values.
   bool Check(std::string* error) const;

@@ -10,6 +10,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <thread>
 
 namespace reconduit {
@@ -291,6 +293,29 @@ TEST_F(JobRunnerTest, StoreCatchesUpWithStagesFinishedOnDisk) {
   EXPECT_THAT(report.resumed_stages, ElementsAre("ingest"));
   EXPECT_EQ(toy.runs->ingest, 0);
   EXPECT_THAT(Get(id).finished_stages, ElementsAre("ingest", "toy"));
+}
+
+TEST_F(JobRunnerTest, HalfWrittenFilesOfAKilledRunAreNotDelivered) {
+  // A worker killed inside an atomic write of a deliverable leaves "<file>.tmp-<pid>-<random>"
+  // in output/; packaging packs every file there, so the next run must remove it first.
+  const std::string id = CreateJob();
+  const fs::path output = layout_.OutputDir(id);
+  fs::create_directories(output / "sparse");
+  std::ofstream(output / "sparse.ply.tmp-4242-17") << "ply";
+  std::ofstream(output / "sparse" / "images.txt.tmp-1-2") << "# half";
+  std::ofstream(output / "notes.tmp-draft.txt") << "not a temporary file";
+  ToyPipeline toy;
+  const JobRunReport report = JobRunner(*store_, Options(MakeToyPipeline(toy))).Run(Claim(id));
+  ASSERT_EQ(report.outcome, JobRunOutcome::kSucceeded) << report.message;
+  EXPECT_FALSE(fs::exists(output / "sparse.ply.tmp-4242-17"));
+  EXPECT_FALSE(fs::exists(output / "sparse" / "images.txt.tmp-1-2"));
+  const std::map<std::string, std::string> entries =
+      testing_util::ReadZipEntries(layout_.ResultZip(id));
+  EXPECT_EQ(entries.count("sparse.ply.tmp-4242-17"), 0u);
+  EXPECT_EQ(entries.count("sparse/images.txt.tmp-1-2"), 0u);
+  EXPECT_EQ(entries.count("notes.tmp-draft.txt"), 1u);
+  EXPECT_THAT(EventMessages(id),
+              Contains(HasSubstr("removed 2 half-written file(s) of an interrupted run")));
 }
 
 TEST_F(JobRunnerTest, StageListedInStoreButMissingOnDiskRunsAgain) {

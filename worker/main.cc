@@ -4,20 +4,27 @@
 #include "server/storage/data_layout.h"
 #include "worker/job_runner.h"
 
+#include <boost/program_options/errors.hpp>
+#include <boost/program_options/options_description.hpp>
+#include <boost/program_options/parsers.hpp>
+
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <csignal>
 #include <cstdlib>
+#include <cstring>
 #include <fcntl.h>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <iostream>
 #include <mutex>
 #include <optional>
 #include <poll.h>
 #include <random>
+#include <set>
 #include <string>
 #include <string_view>
 #include <thread>
@@ -31,14 +38,20 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 constexpr char kUsage[] =
-    "Usage: reconduit-worker [--data DIR] [--id NAME] [--lease SECONDS] [--poll SECONDS]\n"
-    "                        [--threads N] [--until STAGE] [--stop-timeout SECONDS] [--once]\n"
+    "Usage: reconduit-worker [--config FILE] [--data DIR] [--id NAME] [--lease SECONDS]\n"
+    "                        [--poll SECONDS] [--threads N] [--until STAGE]\n"
+    "                        [--stop-timeout SECONDS] [--once]\n"
     "\n"
     "Claims the oldest queued job in <data>/reconduit.db, runs the reconstruction pipeline on\n"
     "it (resuming after the stages an earlier run finished), records progress and events, and\n"
     "finishes it; then the next. Run as many workers side by side as the machine allows: each\n"
     "job goes to exactly one of them.\n"
     "\n"
+    "  --config FILE          read settings from FILE (env RECONDUIT_CONFIG): INI-style\n"
+    "                         'name = value' lines with the long flag names without '--'\n"
+    "                         (data, id, lease, poll, threads, until, stop-timeout, once =\n"
+    "                         true|false); '#' starts a comment. An unknown name or a bad\n"
+    "                         value is an error (exit status 2).\n"
     "  --data DIR             data folder shared with reconduit-server (env RECONDUIT_DATA;\n"
     "                         default ./data). Created if missing.\n"
     "  --id NAME              this worker's name in the job store (env RECONDUIT_WORKER_ID;\n"
@@ -60,12 +73,13 @@ constexpr char kUsage[] =
     "  --once                 run at most one job (none if the queue is empty), then exit.\n"
     "  --help                 this text.\n"
     "\n"
+    "Precedence: command line > environment > config file > defaults.\n"
     "Log level: env RECONDUIT_LOG_LEVEL=debug|info|warning|error (default info).\n"
     "Signals: SIGTERM or SIGINT stops claiming, cancels the running job's stage and gives the\n"
     "job back to the queue (it resumes on the next worker); exit status 0. A second signal\n"
     "gives the job back at once without waiting for the stage.\n"
     "Exit status: 0 stopped normally, 1 cannot open the data folder or the job store, 2 bad\n"
-    "command line.\n";
+    "command line, environment or config file.\n";
 
 // Written by the signal handler, read by the signal thread.
 int g_signal_pipe[2] = {-1, -1};
@@ -128,7 +142,14 @@ struct Flags {
   bool once = false;
 };
 
-// Flags over environment over defaults. Returns an exit status when the program should stop.
+std::optional<bool> ParseBool(const std::string& text) {
+  if (text == "true" || text == "1" || text == "yes" || text == "on") return true;
+  if (text == "false" || text == "0" || text == "no" || text == "off") return false;
+  return std::nullopt;
+}
+
+// Flags over environment over the config file over defaults. Returns an exit status when the
+// program should stop.
 std::optional<int> ParseFlags(int argc, char** argv, Flags* flags) {
   auto env = [](const char* name) -> std::optional<std::string> {
     const char* value = std::getenv(name);
@@ -183,6 +204,67 @@ std::optional<int> ParseFlags(int argc, char** argv, Flags* flags) {
          return s.has_value();
        }},
   };
+
+  // --help and --config first: help needs no valid settings, and the file is read before the
+  // environment and the flags, which override it.
+  std::optional<std::string> config_path = env("RECONDUIT_CONFIG");
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg(argv[i]);
+    if (arg == "--help" || arg == "-h") {
+      std::cout << kUsage;
+      return 0;
+    }
+    if (arg == "--config") {
+      if (i + 1 >= argc) return UsageError("--config needs a value");
+      config_path = argv[++i];
+    }
+  }
+  if (config_path) {
+    const std::string& path = *config_path;
+    std::ifstream file(path);
+    if (!file) {
+      std::cerr << "reconduit-worker: cannot read the config file '" << path
+                << "': " << std::strerror(errno) << "\n";
+      return 2;
+    }
+    namespace po = boost::program_options;
+    po::options_description keys;
+    for (const Setting& setting : settings) {
+      keys.add_options()(setting.flag.substr(2).c_str(), po::value<std::string>());
+    }
+    keys.add_options()("once", po::value<std::string>());
+    const std::string where = "reconduit-worker: config file '" + path + "': ";
+    try {
+      // Unknown names (a typo, "config", a [section]) are errors, never ignored.
+      const po::parsed_options parsed = po::parse_config_file(file, keys, false);
+      std::set<std::string> seen;
+      for (const po::option& option : parsed.options) {
+        const std::string& key = option.string_key;
+        const std::string value = option.value.empty() ? "" : option.value.front();
+        if (!seen.insert(key).second) {
+          std::cerr << where << "'" << key << "' is set more than once\n";
+          return 2;
+        }
+        bool valid = false;
+        if (key == "once") {
+          const std::optional<bool> once = ParseBool(value);
+          if (once) flags->once = *once;
+          valid = once.has_value();
+        } else {
+          for (const Setting& setting : settings) {
+            if (setting.flag.substr(2) == key) valid = setting.set(value);
+          }
+        }
+        if (!valid) {
+          std::cerr << where << "invalid value '" << value << "' for '" << key << "'\n";
+          return 2;
+        }
+      }
+    } catch (const po::error& e) {
+      std::cerr << where << e.what() << "\n";
+      return 2;
+    }
+  }
   for (const Setting& setting : settings) {
     if (const auto value = env(setting.env); value && !setting.set(*value)) {
       std::cerr << "reconduit-worker: invalid " << setting.env << "='" << *value << "'\n";
@@ -191,9 +273,9 @@ std::optional<int> ParseFlags(int argc, char** argv, Flags* flags) {
   }
   for (int i = 1; i < argc; ++i) {
     const std::string arg(argv[i]);
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      return 0;
+    if (arg == "--config") {
+      ++i;  // Read above.
+      continue;
     }
     if (arg == "--once") {
       flags->once = true;
@@ -254,6 +336,19 @@ int Main(int argc, char** argv) {
   options.lease = ToMillis(flags.lease_seconds);
   options.default_num_threads = flags.threads;
   options.make_stages = StagesUntil(flags.until);
+  // Crash-safety tests only: SIGKILL ourselves at a named moment (JobRunnerOptions::on_moment,
+  // or "claimed": right after a claim, before the job starts), deterministically where an
+  // outside kill -9 could not aim.
+  const std::string crash_at = std::getenv("RECONDUIT_WORKER_CRASH_AT") != nullptr
+                                   ? std::getenv("RECONDUIT_WORKER_CRASH_AT")
+                                   : "";
+  auto crash_if = [crash_at](const std::string& moment) {
+    if (crash_at.empty() || moment != crash_at) return;
+    std::cerr << "reconduit-worker: RECONDUIT_WORKER_CRASH_AT=" << crash_at
+              << " reached: killing this process" << std::endl;
+    kill(getpid(), SIGKILL);
+  };
+  if (!crash_at.empty()) options.on_moment = crash_if;
   // A cancel request should be seen within a second, but never more often than a few beats
   // per lease.
   options.cancel_check_interval = std::min(1000ms, options.lease / 4);
@@ -312,6 +407,7 @@ int Main(int argc, char** argv) {
     } else if (claimed->has_value()) {
       announced_waiting = false;
       const Job& job = **claimed;
+      crash_if("claimed");
       const JobRunReport report = runner.Run(job);
       LOG_INFO << "job " << job.id << ": " << JobRunOutcomeName(report.outcome) << " in "
                << report.seconds << " s"
