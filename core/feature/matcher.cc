@@ -2,6 +2,8 @@
 
 #include "core/util/logging.h"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cblas.h>
 #include <cmath>
@@ -105,6 +107,76 @@ std::vector<FeatureMatch> MatchDescriptors(const DescriptorMatrix& descriptors1,
     const Best2& b = best_for_1[i];
     if (b.index < 0 || b.d1 > max_distance2) continue;
     if (b.d1 >= max_ratio2 * b.d2) continue;  // Ratio test on squared distances.
+    if (options.cross_check && best_for_2[b.index].index != i) continue;
+    matches.push_back({i, b.index});
+  }
+  return matches;
+}
+
+bool GuidedMatchingOptions::Check(std::string* error) const {
+  std::ostringstream m;
+  if (!(max_sampson_px > 0.0)) {
+    m << "max_sampson_px must be positive, got " << max_sampson_px;
+  } else if (!(max_ratio > 0.0 && max_ratio <= 1.0)) {
+    m << "max_ratio must be in (0, 1], got " << max_ratio;
+  } else if (!(max_distance > 0.0 && max_distance <= 2.0)) {
+    m << "max_distance must be in (0, 2], got " << max_distance;
+  } else {
+    return true;
+  }
+  if (error != nullptr) *error = m.str();
+  return false;
+}
+
+std::vector<FeatureMatch> GuidedMatchDescriptors(const DescriptorMatrix& descriptors1,
+                                                 const DescriptorMatrix& descriptors2,
+                                                 const std::vector<Eigen::Vector2d>& keypoints1,
+                                                 const std::vector<Eigen::Vector2d>& keypoints2,
+                                                 const Eigen::Matrix3d& F,
+                                                 const GuidedMatchingOptions& options) {
+  std::string error;
+  THROW_CHECK(options.Check(&error)) << error;
+  const int n1 = static_cast<int>(descriptors1.rows());
+  const int n2 = static_cast<int>(descriptors2.rows());
+  THROW_CHECK_EQ(keypoints1.size(), static_cast<std::size_t>(n1));
+  THROW_CHECK_EQ(keypoints2.size(), static_cast<std::size_t>(n2));
+  std::vector<FeatureMatch> matches;
+  if (n1 == 0 || n2 == 0) return matches;
+
+  // Sampson distance² of (x1, x2): (x2ᵀ F x1)² / (|(F x1)_xy|² + |(Fᵀ x2)_xy|²). The image-2
+  // terms are computed once: the epipolar lines Fᵀ x2 in image 1, and x2 itself, in doubles
+  // (pixel coordinates in the thousands square to values that floats would round badly).
+  std::vector<Eigen::Vector3d> points2(n2);
+  std::vector<double> line1_norm2(n2);
+  for (int j = 0; j < n2; ++j) {
+    points2[j] = keypoints2[j].homogeneous();
+    line1_norm2[j] = (F.transpose() * points2[j]).head<2>().squaredNorm();
+  }
+  const double max_sampson2 = options.max_sampson_px * options.max_sampson_px;
+
+  std::vector<Best2> best_for_1(n1);
+  std::vector<Best2> best_for_2(n2);
+  for (int i = 0; i < n1; ++i) {
+    const Eigen::Vector3d line2 = F * keypoints1[i].homogeneous();
+    const double line2_norm2 = line2.head<2>().squaredNorm();
+    const auto d1 = descriptors1.row(i);
+    for (int j = 0; j < n2; ++j) {
+      const double e = line2.dot(points2[j]);
+      const double denominator = line2_norm2 + line1_norm2[j];
+      if (!(e * e <= max_sampson2 * denominator)) continue;  // Also skips 0/0.
+      // Unit-norm descriptors: |a - b|² = 2 - 2 a·b.
+      const float d = std::max(0.0f, 2.0f - 2.0f * d1.dot(descriptors2.row(j)));
+      best_for_1[i].Offer(d, j);
+      best_for_2[j].Offer(d, i);
+    }
+  }
+
+  const float max_distance2 = static_cast<float>(options.max_distance * options.max_distance);
+  const float max_ratio2 = static_cast<float>(options.max_ratio * options.max_ratio);
+  for (int i = 0; i < n1; ++i) {
+    const Best2& b = best_for_1[i];
+    if (b.index < 0 || b.d1 > max_distance2) continue;
+    if (b.d1 >= max_ratio2 * b.d2) continue;  // A lone candidate has d2 = infinity.
     if (options.cross_check && best_for_2[b.index].index != i) continue;
     matches.push_back({i, b.index});
   }

@@ -2,6 +2,7 @@
 
 #include "core/util/timer.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include <random>
@@ -134,6 +135,126 @@ TEST(ToDescriptorMatrix, RowsHaveUnitNorm) {
   const DescriptorMatrix m = ToDescriptorMatrix(features);
   EXPECT_NEAR(m.row(0).norm(), 1.0f, 1e-6f);
   EXPECT_NEAR(m.row(1).norm(), 1.0f, 1e-6f);
+}
+
+// Two views of random points with exact geometry: F, keypoints, one descriptor per point
+// (noisy copies in the second view).
+struct TwoViews {
+  Eigen::Matrix3d F;
+  std::vector<Eigen::Vector2d> keypoints1, keypoints2;
+  DescriptorMatrix descriptors1, descriptors2;
+};
+
+TwoViews MakeTwoViews(int n, std::mt19937& rng) {
+  Eigen::Matrix3d K;
+  K << 1000, 0, 640, 0, 1000, 480, 0, 0, 1;
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.15, Eigen::Vector3d(0.1, 1, 0).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(-1.0, 0.1, 0.05);  // Camera 2 = R X + t.
+  Eigen::Matrix3d tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  TwoViews v;
+  v.F = K.inverse().transpose() * tx * R * K.inverse();
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  while (static_cast<int>(v.keypoints1.size()) < n) {
+    const Eigen::Vector3d X(2.5 * u(rng), 2.0 * u(rng), 8.0 + 2.0 * u(rng));
+    const Eigen::Vector3d x1 = K * X, x2 = K * (R * X + t);
+    const Eigen::Vector2d p1 = x1.hnormalized(), p2 = x2.hnormalized();
+    if (p1.x() < 0 || p1.x() > 1280 || p1.y() < 0 || p1.y() > 960 || p2.x() < 0 || p2.x() > 1280 ||
+        p2.y() < 0 || p2.y() > 960)
+      continue;
+    v.keypoints1.push_back(p1);
+    v.keypoints2.push_back(p2);
+  }
+  v.descriptors1 = RandomUnitRows(n, rng);
+  v.descriptors2 = v.descriptors1;
+  std::normal_distribution<float> noise(0.0f, 0.01f);
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 128; ++c) v.descriptors2(i, c) += noise(rng);
+    v.descriptors2.row(i).normalize();
+  }
+  return v;
+}
+
+double SampsonDistance(const Eigen::Matrix3d& F,
+                       const Eigen::Vector2d& a,
+                       const Eigen::Vector2d& b) {
+  const Eigen::Vector3d l2 = F * a.homogeneous(), l1 = F.transpose() * b.homogeneous();
+  return std::abs(b.homogeneous().dot(l2)) /
+         std::sqrt(l2.head<2>().squaredNorm() + l1.head<2>().squaredNorm());
+}
+
+TEST(GuidedMatchingOptions, Check) {
+  std::string error;
+  EXPECT_TRUE(GuidedMatchingOptions().Check(&error)) << error;
+  GuidedMatchingOptions bad;
+  bad.max_sampson_px = 0;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("max_sampson_px"), std::string::npos);
+}
+
+TEST(GuidedMatchDescriptors, RecoversMatchesThatRepeatedTextureHidFromTheRatioTest) {
+  std::mt19937 rng(11);
+  TwoViews v = MakeTwoViews(600, rng);
+  // Repeated texture: the first 200 points have a twin in view 2 (same descriptor, a little
+  // noise) far from their epipolar line, which defeats the unguided ratio test.
+  const int n = 600, twins = 200;
+  DescriptorMatrix descriptors2(n + twins, 128);
+  descriptors2.topRows(n) = v.descriptors2;
+  std::normal_distribution<float> noise(0.0f, 0.002f);
+  for (int i = 0; i < twins; ++i) {
+    descriptors2.row(n + i) = v.descriptors2.row(i);
+    for (int c = 0; c < 128; ++c) descriptors2(n + i, c) += noise(rng);
+    descriptors2.row(n + i).normalize();
+    // Move away from the line through the true position: along the line's normal.
+    const Eigen::Vector3d line = v.F * v.keypoints1[i].homogeneous();
+    const Eigen::Vector2d normal = line.head<2>().normalized();
+    Eigen::Vector2d twin = v.keypoints2[i] + 150.0 * normal;
+    if (twin.x() < 0 || twin.x() > 1280 || twin.y() < 0 || twin.y() > 960) {
+      twin = v.keypoints2[i] - 150.0 * normal;
+    }
+    v.keypoints2.push_back(twin);
+  }
+
+  const auto plain = MatchDescriptors(v.descriptors1, descriptors2, MatchingOptions());
+  for (const FeatureMatch& m : plain) EXPECT_GE(m.index1, twins) << "the twins confuse it";
+  EXPECT_EQ(static_cast<int>(plain.size()), n - twins);
+
+  const auto guided = GuidedMatchDescriptors(v.descriptors1, descriptors2, v.keypoints1,
+                                             v.keypoints2, v.F, GuidedMatchingOptions());
+  ASSERT_EQ(static_cast<int>(guided.size()), n) << "every point, twins included";
+  for (const FeatureMatch& m : guided) {
+    EXPECT_EQ(m.index2, m.index1);
+    EXPECT_LT(SampsonDistance(v.F, v.keypoints1[m.index1], v.keypoints2[m.index2]), 3.0);
+  }
+}
+
+TEST(GuidedMatchDescriptors, TwinOnTheEpipolarLineStaysAmbiguousAndStrangersStayUnmatched) {
+  std::mt19937 rng(12);
+  TwoViews v = MakeTwoViews(300, rng);
+  // Point 0 gets a twin on its own epipolar line (30 px along it): guided matching cannot
+  // tell them apart either. Points 1..49 of view 1 get unrelated descriptors.
+  const Eigen::Vector3d line = v.F * v.keypoints1[0].homogeneous();
+  const Eigen::Vector2d along(-line.y(), line.x());
+  DescriptorMatrix descriptors2(301, 128);
+  descriptors2.topRows(300) = v.descriptors2;
+  descriptors2.row(300) = v.descriptors2.row(0);
+  v.keypoints2.push_back(v.keypoints2[0] + 30.0 * along.normalized());
+  DescriptorMatrix descriptors1 = v.descriptors1;
+  descriptors1.middleRows(1, 49) = RandomUnitRows(49, rng);
+
+  const auto guided = GuidedMatchDescriptors(descriptors1, descriptors2, v.keypoints1, v.keypoints2,
+                                             v.F, GuidedMatchingOptions());
+  EXPECT_EQ(guided.size(), 250u);
+  for (const FeatureMatch& m : guided) {
+    EXPECT_GE(m.index1, 50);
+    EXPECT_EQ(m.index2, m.index1);
+  }
+}
+
+TEST(GuidedMatchDescriptors, EmptyInputGivesNoMatches) {
+  const DescriptorMatrix none(0, 128);
+  EXPECT_TRUE(GuidedMatchDescriptors(none, none, {}, {}, Eigen::Matrix3d::Identity(), {}).empty());
 }
 
 }  // namespace
