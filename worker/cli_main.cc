@@ -207,6 +207,12 @@ int main(int argc, char** argv) {
   }
   const std::string command = args[0];
   args.erase(args.begin());
+  // `reconduit benchmark --help` and the like: the usage covers every command.
+  if (std::find(args.begin(), args.end(), "--help") != args.end() ||
+      std::find(args.begin(), args.end(), "-h") != args.end()) {
+    std::cout << Usage();
+    return 0;
+  }
   try {
     if (command == "reconstruct") return Reconstruct(args);
     if (command == "benchmark") return RunBenchmark(args);

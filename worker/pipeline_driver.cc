@@ -69,7 +69,7 @@ PipelineOutcome RunJobPipeline(const PipelineJob& job,
     // The plan: which stages the runner will skip. ReadFinishedStages applies the runner's own
     // rule (a stage resumes only if every stage before it does), so the plan cannot disagree
     // with what RunPipeline then does.
-    const std::vector<StageRecord> on_disk = ReadFinishedStages(workspace, stages);
+    const std::vector<StageRecord> on_disk = ReadFinishedStages(workspace, stages, job.options);
     std::vector<StagePlan> plan;
     double total_weight = 0.0;
     for (std::size_t i = 0; i < stages.size(); ++i) {

@@ -20,7 +20,7 @@ std::string RangeText(const OptionSpec& spec) {
 template <typename T>
 OptionSpec IntegerOption(
     std::string name, T PipelineOptions::*field, double minimum, double maximum, std::string help) {
-  OptionSpec spec{std::move(name), "integer", std::move(help), minimum, maximum, {}, {}};
+  OptionSpec spec{std::move(name), "integer", std::move(help), minimum, maximum, {}, {}, {}};
   spec.get = [field](const PipelineOptions& o) { return nlohmann::json(o.*field); };
   spec.set = [field, spec](const nlohmann::json& j, PipelineOptions* o) -> std::string {
     const bool integral = j.is_number_integer() ||
@@ -37,12 +37,43 @@ OptionSpec IntegerOption(
 }
 
 OptionSpec BooleanOption(std::string name, bool PipelineOptions::*field, std::string help) {
-  OptionSpec spec{std::move(name), "boolean", std::move(help), std::nullopt, std::nullopt, {}, {}};
+  OptionSpec spec{
+      std::move(name), "boolean", std::move(help), std::nullopt, std::nullopt, {}, {}, {}};
   spec.get = [field](const PipelineOptions& o) { return nlohmann::json(o.*field); };
   spec.set = [field, name = spec.name](const nlohmann::json& j, PipelineOptions* o) -> std::string {
     if (!j.is_boolean()) return "option '" + name + "' must be true or false, got " + j.dump();
     o->*field = j.get<bool>();
     return "";
+  };
+  return spec;
+}
+
+// A string field that takes one of `choices`.
+OptionSpec ChoiceOption(std::string name,
+                        std::string PipelineOptions::*field,
+                        std::vector<std::string> choices,
+                        std::string help) {
+  OptionSpec spec{std::move(name),
+                  "string",
+                  std::move(help),
+                  std::nullopt,
+                  std::nullopt,
+                  std::move(choices),
+                  {},
+                  {}};
+  spec.get = [field](const PipelineOptions& o) { return nlohmann::json(o.*field); };
+  spec.set = [field, spec](const nlohmann::json& j, PipelineOptions* o) -> std::string {
+    if (j.is_string()) {
+      for (const std::string& choice : spec.choices) {
+        if (j.get<std::string>() == choice) {
+          o->*field = choice;
+          return "";
+        }
+      }
+    }
+    std::string list;
+    for (const std::string& choice : spec.choices) list += (list.empty() ? "" : ", ") + choice;
+    return "option '" + spec.name + "' must be one of " + list + "; got " + j.dump();
   };
   return spec;
 }
@@ -65,10 +96,11 @@ std::vector<OptionSpec> MakeSpecs() {
   specs.push_back(IntegerOption("max_features", &PipelineOptions::max_features, 256, 65536,
                                 "At most this many features per photo, spread over the whole "
                                 "photo."));
-  specs.push_back(BooleanOption(
-      "refine_principal_point", &PipelineOptions::refine_principal_point,
-      "Refine the principal point in the final bundle adjustment of models with 8 or more "
-      "photos, instead of keeping it at the image centre."));
+  specs.push_back(ChoiceOption(
+      "principal_point", &PipelineOptions::principal_point, {"auto", "center", "refine"},
+      "The principal point of models with 8 or more photos: 'auto' refines it in the final "
+      "bundle adjustment when the photos clearly show it is off the image centre, 'center' "
+      "keeps the image centre, 'refine' always refines it."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;
@@ -104,6 +136,7 @@ nlohmann::json DescribePipelineOptions() {
                            {"help", spec.help}};
     if (spec.minimum) item["minimum"] = *spec.minimum;
     if (spec.maximum) item["maximum"] = *spec.maximum;
+    if (!spec.choices.empty()) item["enum"] = spec.choices;
     list.push_back(std::move(item));
   }
   return {{"options", list}};
@@ -140,6 +173,8 @@ Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text) {
   }
   return ParsePipelineOptions(json);
 }
+
+bool OptionAffectsResults(const std::string& name) { return name != "num_threads"; }
 
 nlohmann::json PipelineOptionsToJson(const PipelineOptions& options) {
   nlohmann::json json = nlohmann::json::object();

@@ -36,9 +36,11 @@ struct PipelineOptions {
   int max_image_side = 3200;
   // At most this many features per photo. [256, 65536]
   int max_features = 8192;
-  // Refine the principal point in the final bundle adjustment of models with 8 or more photos
-  // (otherwise it stays at the image centre). [bool]
-  bool refine_principal_point = false;
+  // The principal point in the final bundle adjustment of models with 8 or more photos:
+  // "auto" refines it when the data clearly support an off-centre point (model selection,
+  // see core/sfm/incremental_mapper.h), "center" keeps the image centre, "refine" always
+  // refines it. ["auto", "center", "refine"]
+  std::string principal_point = "auto";
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 
@@ -51,8 +53,9 @@ struct OptionSpec {
   std::string name;
   std::string type;  // "integer", "number", "boolean" or "string" (JSON Schema names).
   std::string help;
-  std::optional<double> minimum;  // Inclusive, for numbers.
-  std::optional<double> maximum;  // Inclusive, for numbers.
+  std::optional<double> minimum;     // Inclusive, for numbers.
+  std::optional<double> maximum;     // Inclusive, for numbers.
+  std::vector<std::string> choices;  // The allowed values of a string option; empty: any.
   std::function<nlohmann::json(const PipelineOptions&)> get;
   // Sets the field from JSON; returns an error message (naming the field) or "" on success.
   std::function<std::string(const nlohmann::json&, PipelineOptions*)> set;
@@ -60,7 +63,11 @@ struct OptionSpec {
 
 const std::vector<OptionSpec>& PipelineOptionSpecs();
 
-// {"options": [{"name", "type", "default", "minimum", "maximum", "help"}, ...]}
+// False only for options that change how fast, not what, the pipeline computes (num_threads):
+// changing them does not invalidate finished stages.
+bool OptionAffectsResults(const std::string& name);
+
+// {"options": [{"name", "type", "default", "minimum", "maximum", "enum", "help"}, ...]}
 nlohmann::json DescribePipelineOptions();
 
 // Parses a JSON object of options over the defaults. Unknown names, wrong types and values

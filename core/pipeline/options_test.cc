@@ -51,6 +51,9 @@ TEST(ParsePipelineOptions, RejectsBadInputWithClearMessages) {
            {R"({"min_image_side": "100"})", "must be an integer"},
            {R"({"use_exif": 1})", "option 'use_exif' must be true or false"},
            {R"({"num_threads": -1})", "num_threads"},
+           {R"({"principal_point": "free"})",
+            "option 'principal_point' must be one of auto, center, refine; got \"free\""},
+           {R"({"principal_point": true})", "option 'principal_point' must be one of"},
        }) {
     auto options = ParsePipelineOptionsText(c.text);
     ASSERT_FALSE(options.ok()) << c.text;
@@ -68,6 +71,23 @@ TEST(DescribePipelineOptions, ListsEveryOptionWithDefaultsAndRanges) {
   EXPECT_EQ(first["default"], 100);
   EXPECT_EQ(first["minimum"], 16);
   EXPECT_FALSE(first["help"].get<std::string>().empty());
+  bool listed_choices = false;
+  for (const nlohmann::json& option : described["options"]) {
+    if (option["name"] != "principal_point") continue;
+    EXPECT_EQ(option["type"], "string");
+    EXPECT_EQ(option["default"], "auto");
+    EXPECT_EQ(option["enum"], nlohmann::json::array({"auto", "center", "refine"}));
+    listed_choices = true;
+  }
+  EXPECT_TRUE(listed_choices);
+}
+
+TEST(ParsePipelineOptions, AcceptsEachChoice) {
+  for (const std::string choice : {"auto", "center", "refine"}) {
+    auto options = ParsePipelineOptions({{"principal_point", choice}});
+    ASSERT_TRUE(options.ok()) << options.status();
+    EXPECT_EQ(options->principal_point, choice);
+  }
 }
 
 TEST(PipelineOptionsToJson, RoundTrips) {

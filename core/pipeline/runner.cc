@@ -14,19 +14,48 @@ namespace fs = std::filesystem;
 
 constexpr char kMarker[] = "stage.json";
 
-std::optional<StageRecord> ReadMarker(const fs::path& stage_dir) {
+// The values of the options `stage` depends on.
+nlohmann::json UsedOptionValues(const Stage& stage, const PipelineOptions& options) {
+  const nlohmann::json all = PipelineOptionsToJson(options);
+  nlohmann::json used = nlohmann::json::object();
+  for (const std::string& name : stage.OptionsUsed()) {
+    THROW_CHECK(all.contains(name)) << "stage " << stage.Name() << " names unknown option " << name;
+    used[name] = all.at(name);
+  }
+  return used;
+}
+
+// The record of `stage` when it finished in an earlier run with the same option values.
+std::optional<StageRecord> ReadMarker(const Stage& stage,
+                                      const fs::path& stage_dir,
+                                      const PipelineOptions& options) {
   auto text = ReadFile(stage_dir / kMarker);
   if (!text.ok()) return std::nullopt;
   try {
     StageRecord record = StageRecord::FromJson(nlohmann::json::parse(*text));
-    if (record.status == StageStatus::kSuccess) return record;
-  } catch (const std::exception& e) {
+    if (record.status != StageStatus::kSuccess) return std::nullopt;
+    const nlohmann::json now = UsedOptionValues(stage, options);
+    if (record.options != now) {
+      LOG_INFO << "stage " << stage.Name() << ": options changed since the earlier run ("
+               << record.options.dump() << " then, " << now.dump() << " now): running again";
+      return std::nullopt;
+    }
+    return record;
+  } catch (const nlohmann::json::exception& e) {
     LOG_WARNING << "ignoring unreadable " << (stage_dir / kMarker).string() << ": " << e.what();
   }
   return std::nullopt;
 }
 
 }  // namespace
+
+std::vector<std::string> Stage::OptionsUsed() const {
+  std::vector<std::string> names;
+  for (const OptionSpec& spec : PipelineOptionSpecs()) {
+    if (OptionAffectsResults(spec.name)) names.push_back(spec.name);
+  }
+  return names;
+}
 
 std::string_view StageStatusName(StageStatus status) {
   switch (status) {
@@ -44,7 +73,8 @@ std::string_view StageStatusName(StageStatus status) {
 
 nlohmann::json StageRecord::ToJson() const {
   return {{"name", name},       {"status", StageStatusName(status)},      {"message", message},
-          {"seconds", seconds}, {"peak_memory_bytes", peak_memory_bytes}, {"summary", summary}};
+          {"seconds", seconds}, {"peak_memory_bytes", peak_memory_bytes}, {"summary", summary},
+          {"options", options}};
 }
 
 StageRecord StageRecord::FromJson(const nlohmann::json& json) {
@@ -59,15 +89,19 @@ StageRecord StageRecord::FromJson(const nlohmann::json& json) {
   record.seconds = json.value("seconds", 0.0);
   record.peak_memory_bytes = json.value("peak_memory_bytes", std::int64_t{0});
   record.summary = json.value("summary", nlohmann::json::object());
+  // Markers written before options were recorded have none: they match no stage that uses
+  // options, so such a stage runs again.
+  record.options = json.value("options", nlohmann::json::object());
   return record;
 }
 
 std::vector<StageRecord> ReadFinishedStages(const Workspace& workspace,
-                                            const std::vector<std::unique_ptr<Stage>>& stages) {
+                                            const std::vector<std::unique_ptr<Stage>>& stages,
+                                            const PipelineOptions& options) {
   std::vector<StageRecord> records;
   for (const auto& stage : stages) {
     if (!stage->Resumable()) break;
-    auto record = ReadMarker(workspace.StageDir(stage->Name()));
+    auto record = ReadMarker(*stage, workspace.StageDir(stage->Name()), options);
     if (!record) break;
     records.push_back(std::move(*record));
   }
@@ -106,7 +140,7 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
 
     if (!stage.Resumable()) may_resume = false;
     if (may_resume) {
-      if (auto record = ReadMarker(stage_dir)) {
+      if (auto record = ReadMarker(stage, stage_dir, options)) {
         record->resumed = true;
         LOG_INFO << "stage " << name << ": finished in an earlier run, resuming after it";
         weight_done += stage.Weight();
@@ -141,6 +175,7 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
     const Timer timer;
     StageRecord record;
     record.name = name;
+    record.options = UsedOptionValues(stage, options);
     StageContext context{workspace, options, progress, cancel, result.stages, stage_dir};
     try {
       StageResult stage_result = stage.Run(context);

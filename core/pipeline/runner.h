@@ -1,11 +1,11 @@
 // Runs stages in order, resuming after the last finished one.
 //
 // For each stage the runner: skips it when work/<stage>/stage.json says it succeeded earlier
-// (resume after a crash or restart); otherwise empties work/<stage>/, runs it with a Progress
-// that feeds the overall figure, turns CancelledError into kCancelled and any other exception
-// into kFailed with its message, records time and peak memory, and writes stage.json
-// atomically on success. It stops at the first stage that does not succeed and checks the
-// cancel token between stages. Nothing here knows about databases or HTTP.
+// with the same values of the options it uses (resume after a crash or restart); otherwise empties
+// work/<stage>/, runs it with a Progress that feeds the overall figure, turns CancelledError into
+// kCancelled and any other exception into kFailed with its message, records time and peak memory,
+// and writes stage.json atomically on success. It stops at the first stage that does not succeed
+// and checks the cancel token between stages. Nothing here knows about databases or HTTP.
 #ifndef RECONDUIT_CORE_PIPELINE_RUNNER_H_
 #define RECONDUIT_CORE_PIPELINE_RUNNER_H_
 
@@ -41,9 +41,11 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
                            const CancelToken& cancel,
                            const PipelineCallbacks& callbacks = {});
 
-// The finished stages recorded in a work folder (for status pages and tests).
+// The finished stages recorded in a work folder that RunPipeline with `options` would resume
+// (for status pages and tests).
 std::vector<StageRecord> ReadFinishedStages(const Workspace& workspace,
-                                            const std::vector<std::unique_ptr<Stage>>& stages);
+                                            const std::vector<std::unique_ptr<Stage>>& stages,
+                                            const PipelineOptions& options);
 
 }  // namespace reconduit
 

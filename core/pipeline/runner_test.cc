@@ -145,7 +145,8 @@ TEST_F(RunnerTest, ResumesAfterTheLastFinishedStage) {
   EXPECT_TRUE(result.stages[0].resumed);
   EXPECT_FALSE(result.stages[1].resumed);
   EXPECT_FALSE(fs::exists(workspace_.StageDir("b") / "partial.tmp"));
-  EXPECT_EQ(ReadFinishedStages(workspace_, Stages(ToyStage::Behaviour::kSucceed)).size(), 3u);
+  EXPECT_EQ(ReadFinishedStages(workspace_, Stages(ToyStage::Behaviour::kSucceed), options_).size(),
+            3u);
 }
 
 TEST_F(RunnerTest, StageAfterARerunStageRunsAgain) {
@@ -155,6 +156,58 @@ TEST_F(RunnerTest, StageAfterARerunStageRunsAgain) {
   EXPECT_EQ(runs_[0], 1);
   EXPECT_EQ(runs_[1], 2);
   EXPECT_EQ(runs_[2], 2) << "c consumed b's old outputs, so it runs again";
+}
+
+// A stage that depends on one option only.
+class OptionStage : public ToyStage {
+ public:
+  OptionStage(std::string name, int* runs) : ToyStage(std::move(name), Behaviour::kSucceed, runs) {}
+  std::vector<std::string> OptionsUsed() const override { return {"max_features"}; }
+};
+
+TEST_F(RunnerTest, ChangedOptionsRerunTheStagesThatUseThemAndWhatFollows) {
+  auto stages = [&] {
+    std::vector<std::unique_ptr<Stage>> s;
+    s.push_back(std::make_unique<OptionStage>("a", &runs_[0]));  // max_features only.
+    s.push_back(std::make_unique<ToyStage>("b", ToyStage::Behaviour::kSucceed, &runs_[1]));
+    s.push_back(std::make_unique<ToyStage>("c", ToyStage::Behaviour::kSucceed, &runs_[2]));
+    return s;
+  };
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+  const nlohmann::json marker =
+      nlohmann::json::parse(*ReadFile(workspace_.StageDir("a") / "stage.json"));
+  EXPECT_EQ(marker.at("options"), nlohmann::json({{"max_features", options_.max_features}}));
+
+  // Threads change how fast, not what: everything resumes.
+  options_.num_threads = 1;
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+  EXPECT_EQ(runs_[0], 1);
+  EXPECT_EQ(runs_[2], 1);
+
+  // An option only b and c use (by default a stage uses every option): a resumes, b and c run.
+  options_.use_exif = !options_.use_exif;
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+  EXPECT_EQ(runs_[0], 1);
+  EXPECT_EQ(runs_[1], 2);
+  EXPECT_EQ(runs_[2], 2);
+  EXPECT_EQ(ReadFinishedStages(workspace_, stages(), options_).size(), 3u);
+
+  // a's option: all three run again.
+  options_.max_features = 1000;
+  EXPECT_EQ(ReadFinishedStages(workspace_, stages(), options_).size(), 0u);
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+  EXPECT_EQ(runs_[0], 2);
+  EXPECT_EQ(runs_[1], 3);
+  EXPECT_EQ(runs_[2], 3);
+}
+
+TEST_F(RunnerTest, MarkerWithoutOptionsIsNotResumed) {
+  RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, CancelToken());
+  nlohmann::json marker = nlohmann::json::parse(*ReadFile(workspace_.StageDir("a") / "stage.json"));
+  marker.erase("options");  // As written before options were recorded.
+  ASSERT_TRUE(WriteFileAtomically(workspace_.StageDir("a") / "stage.json", marker.dump()).ok());
+  RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, CancelToken());
+  EXPECT_EQ(runs_[0], 2);
 }
 
 TEST_F(RunnerTest, NonResumableStageRunsEveryTimeAndSoDoesWhatFollows) {

@@ -70,6 +70,8 @@ struct StageRecord {
   double seconds = 0.0;
   std::int64_t peak_memory_bytes = 0;  // Process peak RSS when the stage ended.
   nlohmann::json summary = nlohmann::json::object();
+  // The values of the stage's OptionsUsed() it ran with, {name: value}.
+  nlohmann::json options = nlohmann::json::object();
   bool resumed = false;  // Taken from an earlier run instead of run again.
 
   nlohmann::json ToJson() const;
@@ -99,6 +101,12 @@ class Stage {
   // False for a stage that must run every time (packaging: its output depends on which
   // stages ran). A non-resumable stage also ends resuming for the stages after it.
   virtual bool Resumable() const { return true; }
+  // The pipeline options this stage's outputs depend on (names from PipelineOptionSpecs). The
+  // runner records their values in stage.json and resumes the stage only while they are
+  // unchanged, so a rerun with other options never reuses outputs made with the old ones.
+  // The default, every option that affects results, is always safe; a stage narrows it so
+  // that changing an option reruns only the stages it concerns (and those after them).
+  virtual std::vector<std::string> OptionsUsed() const;
   // Does the work. May throw CancelledError (cancelled) or any exception (failed).
   virtual StageResult Run(StageContext& context) const = 0;
 };

@@ -39,6 +39,8 @@ std::vector<Camera> MakeCameras(const SyntheticSceneOptions& options) {
   Camera nominal = Camera::FromFocal(options.width, options.height, options.focal);
   nominal.k1 = options.k1;
   nominal.k2 = options.k2;
+  nominal.cx += options.principal_point_offset.x();
+  nominal.cy += options.principal_point_offset.y();
   std::vector<Camera> cameras(options.num_cameras, nominal);
   if (options.shared_intrinsics) return cameras;
   std::mt19937_64 rng = StageRng(options.seed, Stage::kIntrinsics);
@@ -277,6 +279,8 @@ bool SyntheticSceneOptions::Check(std::string* error) const {
     message << "focal must be positive, got " << focal;
   } else if (!finite(k1) || !finite(k2)) {
     message << "k1 and k2 must be finite";
+  } else if (!principal_point_offset.allFinite()) {
+    message << "principal_point_offset must be finite";
   } else if (!finite(focal_variation) || focal_variation < 0.0 || focal_variation >= 0.5) {
     message << "focal_variation must be in [0, 0.5), got " << focal_variation;
   } else if (!finite(principal_point_variation) || principal_point_variation < 0.0) {

@@ -79,10 +79,12 @@ struct SyntheticSceneOptions {
   int height = 480;
   // Focal length in pixels, > 0 (500 px at 640 wide: a 65 degree horizontal field of view).
   double focal = 500.0;
-  // Radial distortion of the nominal camera (see core/geometry/camera.h). The principal
-  // point is the image centre.
+  // Radial distortion of the nominal camera (see core/geometry/camera.h).
   double k1 = 0.0;
   double k2 = 0.0;
+  // Offset in pixels of the nominal principal point from the image centre (a real lens is
+  // rarely centred on its sensor; fountain-P11's is 15 px off), finite.
+  Eigen::Vector2d principal_point_offset = Eigen::Vector2d::Zero();
   // True: every image has exactly the nominal intrinsics and camera_id 0. False: each image
   // is its own camera (camera_id = image index), drawn around the nominal one with the
   // variations below (which must be 0 when shared).

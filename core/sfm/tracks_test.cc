@@ -20,21 +20,32 @@ TEST(BuildTracks, ChainsMatchesAcrossPairs) {
   EXPECT_EQ(tracks[1].observations[2].image_id, 2);
   EXPECT_EQ(tracks[1].observations[2].keypoint, 2);
   EXPECT_EQ(stats.num_observations, 5u);
-  EXPECT_EQ(stats.num_inconsistent, 0u);
+  EXPECT_EQ(stats.num_conflicting_matches, 0u);
 }
 
-TEST(BuildTracks, DropsTracksThatHitAnImageTwice) {
-  // 0:1 ~ 1:1 ~ 2:1 ~ 0:2 — two keypoints of image 0 in one component.
+TEST(BuildTracks, RefusesTheMatchThatWouldHitAnImageTwice) {
+  // 0:1 ~ 1:1 ~ 2:1 ~ 0:2 would put two keypoints of image 0 in one track. The weakest pair's
+  // match (pair 1-2, one match) is the one refused.
   const std::vector<PairMatches> pairs = {
-      {0, 1, {{1, 1}}},
       {1, 2, {{1, 1}}},
+      {0, 1, {{1, 1}, {5, 5}}},
       {0, 2, {{2, 1}, {3, 3}}},
   };
   TrackStatistics stats;
   const auto tracks = BuildTracks(pairs, 2, &stats);
-  ASSERT_EQ(tracks.size(), 1u);
-  EXPECT_EQ(tracks[0].observations[0].keypoint, 3);
-  EXPECT_EQ(stats.num_inconsistent, 1u);
+  EXPECT_EQ(stats.num_conflicting_matches, 1u);
+  ASSERT_EQ(tracks.size(), 4u);
+  // By first observation: (0:1, 1:1), (0:2, 2:1), (0:3, 2:3), (0:5, 1:5).
+  EXPECT_EQ(tracks[0].observations.size(), 2u);
+  EXPECT_EQ(tracks[0].observations[1].image_id, 1);
+  EXPECT_EQ(tracks[1].observations[0].keypoint, 2);
+  EXPECT_EQ(tracks[1].observations[1].image_id, 2);
+  EXPECT_EQ(tracks[1].observations[1].keypoint, 1);
+  for (const Track& track : tracks) {
+    for (std::size_t k = 1; k < track.observations.size(); ++k) {
+      EXPECT_LT(track.observations[k - 1].image_id, track.observations[k].image_id);
+    }
+  }
 }
 
 TEST(BuildTracks, MinimumLength) {

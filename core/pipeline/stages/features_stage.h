@@ -15,6 +15,10 @@ class FeaturesStage : public Stage {
   std::string_view Name() const override { return "features"; }
   std::string_view Title() const override { return "Finding features"; }
   double Weight() const override { return 3.0; }
+  // The decoding limits (min_image_side, max_image_pixels) only guard what ingest accepted.
+  std::vector<std::string> OptionsUsed() const override {
+    return {"max_image_side", "max_features"};
+  }
   StageResult Run(StageContext& context) const override;
 };
 

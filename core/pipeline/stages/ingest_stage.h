@@ -39,6 +39,9 @@ class IngestStage : public Stage {
   std::string_view Name() const override { return "ingest"; }
   std::string_view Title() const override { return "Reading photos"; }
   double Weight() const override { return 0.5; }
+  std::vector<std::string> OptionsUsed() const override {
+    return {"min_image_side", "max_image_pixels"};
+  }
   StageResult Run(StageContext& context) const override;
 };
 

@@ -2,9 +2,10 @@
 //
 // For each pair from the pairs stage: exhaustive RootSIFT matching (ratio test, mutual check),
 // then robust F and H with GRIC model selection (core/estimators/two_view_geometry.h). Pairs
-// with a usable model keep the inliers of that model. Writes work/matching/pairs.bin (binary,
-// see matching_stage.cc) and work/matching/summary.json (per pair counts, model and GRIC, for
-// people), and the match graph as a picture, output/report/match_graph.png.
+// with a usable model keep the inliers of that model; pairs with epipolar geometry also get
+// guided matches along F's epipolar lines (more and longer tracks). Writes work/matching/pairs.bin
+// (binary, see matching_stage.cc) and work/matching/summary.json (per pair counts, model and GRIC,
+// for people), and the match graph as a picture, output/report/match_graph.png.
 #ifndef RECONDUIT_CORE_PIPELINE_STAGES_MATCHING_STAGE_H_
 #define RECONDUIT_CORE_PIPELINE_STAGES_MATCHING_STAGE_H_
 
@@ -29,6 +30,9 @@ struct VerifiedPair {
   int num_inliers_H = 0;
   double gric_F = 0.0;
   double gric_H = 0.0;
+  // Matches added by guided matching along F's epipolar lines (included in `matches`; not
+  // stored in pairs.bin).
+  int num_guided = 0;
 };
 
 class MatchingStage : public Stage {
@@ -36,6 +40,7 @@ class MatchingStage : public Stage {
   std::string_view Name() const override { return "matching"; }
   std::string_view Title() const override { return "Matching photos"; }
   double Weight() const override { return 2.0; }
+  std::vector<std::string> OptionsUsed() const override { return {}; }
   StageResult Run(StageContext& context) const override;
 };
 

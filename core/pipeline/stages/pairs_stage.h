@@ -18,6 +18,7 @@ class PairsStage : public Stage {
   std::string_view Name() const override { return "pairs"; }
   std::string_view Title() const override { return "Comparing photos"; }
   double Weight() const override { return 0.5; }
+  std::vector<std::string> OptionsUsed() const override { return {}; }
   StageResult Run(StageContext& context) const override;
 };
 
