@@ -34,6 +34,26 @@ struct Best2 {
   }
 };
 
+// The matches that pass the distance test, the ratio test (on squared distances; a lone
+// candidate has d2 = infinity) and, when asked, the mutual check. Sorted by index1.
+std::vector<FeatureMatch> SelectMatches(const std::vector<Best2>& best_for_1,
+                                        const std::vector<Best2>& best_for_2,
+                                        double max_distance,
+                                        double max_ratio,
+                                        bool cross_check) {
+  const float max_distance2 = static_cast<float>(max_distance * max_distance);
+  const float max_ratio2 = static_cast<float>(max_ratio * max_ratio);
+  std::vector<FeatureMatch> matches;
+  for (int i = 0; i < static_cast<int>(best_for_1.size()); ++i) {
+    const Best2& b = best_for_1[i];
+    if (b.index < 0 || b.d1 > max_distance2) continue;
+    if (b.d1 >= max_ratio2 * b.d2) continue;
+    if (cross_check && best_for_2[b.index].index != i) continue;
+    matches.push_back({i, b.index});
+  }
+  return matches;
+}
+
 void UseSingleThreadedBlas() {
   static std::once_flag once;
   std::call_once(once, [] { openblas_set_num_threads(1); });
@@ -73,8 +93,8 @@ std::vector<FeatureMatch> MatchDescriptors(const DescriptorMatrix& descriptors1,
   THROW_CHECK(options.Check(&error)) << error;
   const int n1 = static_cast<int>(descriptors1.rows());
   const int n2 = static_cast<int>(descriptors2.rows());
-  std::vector<FeatureMatch> matches;
-  if (n1 == 0 || n2 == 0) return matches;
+
+  if (n1 == 0 || n2 == 0) return {};
   UseSingleThreadedBlas();
 
   const Eigen::VectorXf norms2 = descriptors2.rowwise().squaredNorm();
@@ -101,16 +121,8 @@ std::vector<FeatureMatch> MatchDescriptors(const DescriptorMatrix& descriptors1,
     }
   }
 
-  const float max_distance2 = static_cast<float>(options.max_distance * options.max_distance);
-  const float max_ratio2 = static_cast<float>(options.max_ratio * options.max_ratio);
-  for (int i = 0; i < n1; ++i) {
-    const Best2& b = best_for_1[i];
-    if (b.index < 0 || b.d1 > max_distance2) continue;
-    if (b.d1 >= max_ratio2 * b.d2) continue;  // Ratio test on squared distances.
-    if (options.cross_check && best_for_2[b.index].index != i) continue;
-    matches.push_back({i, b.index});
-  }
-  return matches;
+  return SelectMatches(best_for_1, best_for_2, options.max_distance, options.max_ratio,
+                       options.cross_check);
 }
 
 bool GuidedMatchingOptions::Check(std::string* error) const {
@@ -140,8 +152,8 @@ std::vector<FeatureMatch> GuidedMatchDescriptors(const DescriptorMatrix& descrip
   const int n2 = static_cast<int>(descriptors2.rows());
   THROW_CHECK_EQ(keypoints1.size(), static_cast<std::size_t>(n1));
   THROW_CHECK_EQ(keypoints2.size(), static_cast<std::size_t>(n2));
-  std::vector<FeatureMatch> matches;
-  if (n1 == 0 || n2 == 0) return matches;
+
+  if (n1 == 0 || n2 == 0) return {};
 
   // Sampson distance² of (x1, x2): (x2ᵀ F x1)² / (|(F x1)_xy|² + |(Fᵀ x2)_xy|²). The image-2
   // terms are computed once: the epipolar lines Fᵀ x2 in image 1, and x2 itself, in doubles
@@ -171,16 +183,8 @@ std::vector<FeatureMatch> GuidedMatchDescriptors(const DescriptorMatrix& descrip
     }
   }
 
-  const float max_distance2 = static_cast<float>(options.max_distance * options.max_distance);
-  const float max_ratio2 = static_cast<float>(options.max_ratio * options.max_ratio);
-  for (int i = 0; i < n1; ++i) {
-    const Best2& b = best_for_1[i];
-    if (b.index < 0 || b.d1 > max_distance2) continue;
-    if (b.d1 >= max_ratio2 * b.d2) continue;  // A lone candidate has d2 = infinity.
-    if (options.cross_check && best_for_2[b.index].index != i) continue;
-    matches.push_back({i, b.index});
-  }
-  return matches;
+  return SelectMatches(best_for_1, best_for_2, options.max_distance, options.max_ratio,
+                       options.cross_check);
 }
 
 }  // namespace reconduit

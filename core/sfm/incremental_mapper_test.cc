@@ -88,7 +88,8 @@ TEST(IncrementalMapperOptions, DefaultsAreValid) {
   EXPECT_NE(error.find("global_ba_growth"), std::string::npos);
 }
 
-TEST(ReconstructIncrementally, RecoversCamerasAndFocalWithNoiseAndOutliers) {
+// 10 photos on a ring, 1500 points, f = 800 px, k1 = -0.05, 0.5 px noise, 5 % outliers.
+SyntheticSceneOptions NoisyRingOptions() {
   SyntheticSceneOptions options;
   options.num_cameras = 10;
   options.num_points = 1500;
@@ -98,6 +99,11 @@ TEST(ReconstructIncrementally, RecoversCamerasAndFocalWithNoiseAndOutliers) {
   options.k1 = -0.05;
   options.pixel_noise_stddev = 0.5;
   options.outlier_fraction = 0.05;
+  return options;
+}
+
+TEST(ReconstructIncrementally, RecoversCamerasAndFocalWithNoiseAndOutliers) {
+  SyntheticSceneOptions options = NoisyRingOptions();
   options.seed = 7;
   const SyntheticScene scene = SynthesizeScene(options);
   const MapperInput input = InputFromScene(scene, /*focal_guess=*/800 * 1.03);
@@ -129,15 +135,7 @@ struct PrincipalPointRun {
 };
 
 PrincipalPointRun RunWithPrincipalPoint(double offset, PrincipalPointMode mode) {
-  SyntheticSceneOptions options;
-  options.num_cameras = 10;
-  options.num_points = 1500;
-  options.focal = 800;
-  options.width = 1024;
-  options.height = 768;
-  options.k1 = -0.05;
-  options.pixel_noise_stddev = 0.5;
-  options.outlier_fraction = 0.05;
+  SyntheticSceneOptions options = NoisyRingOptions();
   options.principal_point_offset = {offset, -offset};
   options.seed = 8;
   const SyntheticScene scene = SynthesizeScene(options);
