@@ -120,16 +120,22 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options)
 
   cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, options.octave_layers, options.contrast_threshold,
                                             options.edge_threshold, 1.6);
+  // One pass: detect() followed by compute() would build the Gaussian pyramid twice, which
+  // costs more than describing the candidates that the selection below then drops.
   std::vector<cv::KeyPoint> candidates;
-  sift->detect(working, candidates);
+  cv::Mat candidate_descriptors;
+  sift->detectAndCompute(working, cv::noArray(), candidates, candidate_descriptors);
   const std::vector<int> chosen =
       SelectSpreadKeypoints(candidates, working.cols, working.rows, options.max_features,
                             options.spread_fraction, options.grid_cells);
   std::vector<cv::KeyPoint> keypoints;
   keypoints.reserve(chosen.size());
-  for (int index : chosen) keypoints.push_back(candidates[index]);
-  cv::Mat descriptors;
-  sift->compute(working, keypoints, descriptors);  // May drop keypoints near the border.
+  cv::Mat descriptors(static_cast<int>(chosen.size()), candidate_descriptors.cols,
+                      candidate_descriptors.type());
+  for (std::size_t i = 0; i < chosen.size(); ++i) {
+    keypoints.push_back(candidates[chosen[i]]);
+    candidate_descriptors.row(chosen[i]).copyTo(descriptors.row(static_cast<int>(i)));
+  }
 
   FeatureSet features;
   features.image_width = gray.cols;
