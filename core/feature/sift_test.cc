@@ -5,6 +5,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <set>
 
@@ -155,6 +156,63 @@ TEST(ExtractSiftFeatures, RepeatableUnderAKnownHomography) {
 
 TEST(ExtractSiftFeatures, DownscaledDetectionReportsOriginalPixels) {
   CheckRepeatableUnderHomography(/*max_image_side=*/600, /*tolerance_px=*/3.0);
+}
+
+// Gaussian blobs at known sub-pixel centres: keypoints must sit on them without bias, at
+// full resolution and when detection runs on a downscaled copy.
+void CheckBlobCentres(int max_image_side, double tolerance_px) {
+  const int width = 800, height = 600;
+  cv::RNG rng(11);
+  cv::Mat image(height, width, CV_32F, cv::Scalar(60));
+  std::vector<cv::Point2d> centres;
+  for (int gy = 0; gy < 9; ++gy) {
+    for (int gx = 0; gx < 12; ++gx) {
+      const cv::Point2d c(40 + 64 * gx + rng.uniform(0.0, 1.0),
+                          40 + 64 * gy + rng.uniform(0.0, 1.0));
+      const double sigma = rng.uniform(2.0, 4.5);
+      centres.push_back(c);
+      for (int y = static_cast<int>(c.y) - 24; y <= static_cast<int>(c.y) + 24; ++y) {
+        for (int x = static_cast<int>(c.x) - 24; x <= static_cast<int>(c.x) + 24; ++x) {
+          const double d2 = (x - c.x) * (x - c.x) + (y - c.y) * (y - c.y);
+          image.at<float>(y, x) += static_cast<float>(150.0 * std::exp(-d2 / (2 * sigma * sigma)));
+        }
+      }
+    }
+  }
+  cv::Mat bytes;
+  image.convertTo(bytes, CV_8U);
+  SiftOptions options;
+  options.max_image_side = max_image_side;
+  const FeatureSet features = ExtractSiftFeatures(bytes, options);
+
+  double sum_dx = 0.0, sum_dy = 0.0;
+  int found = 0;
+  for (const cv::Point2d& c : centres) {
+    const Keypoint* nearest = nullptr;
+    double best = 1.5;
+    for (const Keypoint& kp : features.keypoints) {
+      const double d = std::hypot(kp.x - c.x, kp.y - c.y);
+      if (d < best) {
+        best = d;
+        nearest = &kp;
+      }
+    }
+    if (nearest == nullptr) continue;
+    sum_dx += nearest->x - c.x;
+    sum_dy += nearest->y - c.y;
+    ++found;
+  }
+  ASSERT_GT(found, 0.75 * centres.size());
+  EXPECT_NEAR(sum_dx / found, 0.0, tolerance_px);
+  EXPECT_NEAR(sum_dy / found, 0.0, tolerance_px);
+}
+
+TEST(ExtractSiftFeatures, BlobCentresWithoutBias) {
+  CheckBlobCentres(/*max_image_side=*/3200, /*tolerance_px=*/0.03);
+}
+
+TEST(ExtractSiftFeatures, BlobCentresWithoutBiasWhenDownscaled) {
+  CheckBlobCentres(/*max_image_side=*/400, /*tolerance_px=*/0.06);
 }
 
 TEST(ExtractSiftFeatures, Deterministic) {
