@@ -61,6 +61,10 @@ CameraEvaluation EvaluateCameras(const Reconstruction& reconstruction,
     const double focal_error = 100.0 * std::abs(camera.focal - f_true) / f_true;
     e.mean_focal_error_percent += focal_error / n;
     e.max_focal_error_percent = std::max(e.max_focal_error_percent, focal_error);
+    const double fx = gts[i]->K(0, 0), fy = gts[i]->K(1, 1);
+    e.mean_focal_error_x_percent += 100.0 * std::abs(camera.focal - fx) / fx / n;
+    e.mean_focal_error_y_percent += 100.0 * std::abs(camera.focal - fy) / fy / n;
+    e.ground_truth_non_square = e.ground_truth_non_square || fx != fy;
   }
   e.mean_center_error_percent_of_radius = radius > 0 ? 100.0 * e.mean_center_error / radius : 0.0;
 
@@ -98,6 +102,10 @@ std::string CameraEvaluation::Report() const {
       << max_relative_rotation_error_deg << ")\n";
     s << "focal error, mean         " << mean_focal_error_percent << " % (max "
       << max_focal_error_percent << ")\n";
+    if (ground_truth_non_square) {
+      s << "focal error vs fx, vs fy  " << mean_focal_error_x_percent << " %, "
+        << mean_focal_error_y_percent << " % (the ground truth's pixels are not square)\n";
+    }
   }
   for (const std::string& name : missing) s << "not registered            " << name << "\n";
   return s.str();

@@ -51,8 +51,37 @@ TEST(EvaluateCameras, InvariantToSimilarityAndSensitiveToErrors) {
   moved.cam_from_world.translation = -(moved.cam_from_world.rotation * c);
   e = EvaluateCameras(rec, truth);
   EXPECT_NEAR(e.mean_focal_error_percent, 1.0, 1e-9);
+  EXPECT_FALSE(e.ground_truth_non_square);
+  EXPECT_EQ(e.Report().find("vs fy"), std::string::npos);
   EXPECT_GT(e.max_center_error, 0.03);  // 0.03 reconstruction units = 0.1 true units...
   EXPECT_LT(e.max_center_error, 0.12);  // ...shared out by the least-squares alignment.
+}
+
+// Ground truth with fx != fy: the focal is compared with their mean and with each.
+TEST(EvaluateCameras, NonSquareGroundTruthReportsBothAxes) {
+  std::vector<GroundTruthCamera> truth;
+  Reconstruction rec;
+  rec.cameras[0] = Camera::FromFocal(1000, 800, 1000.0);
+  for (int i = 0; i < 4; ++i) {
+    GroundTruthCamera gt;
+    gt.name = "p" + std::to_string(i);
+    gt.K << 990, 0, 500, 0, 1010, 400, 0, 0, 1;
+    gt.cam_from_world = Rigid3d::LookAt({4 * std::sin(0.5 * i), 0.2 * i, -4}, {0, 0, 0});
+    truth.push_back(gt);
+    RegisteredImage image;
+    image.image_id = i;
+    image.camera_id = 0;
+    image.name = gt.name;
+    image.cam_from_world = gt.cam_from_world;
+    rec.images[i] = image;
+  }
+  const CameraEvaluation e = EvaluateCameras(rec, truth);
+  EXPECT_NEAR(e.mean_focal_error_percent, 0.0, 1e-12);
+  EXPECT_NEAR(e.mean_focal_error_x_percent, 100.0 * 10.0 / 990.0, 1e-9);
+  EXPECT_NEAR(e.mean_focal_error_y_percent, 100.0 * 10.0 / 1010.0, 1e-9);
+  EXPECT_TRUE(e.ground_truth_non_square);
+  EXPECT_NE(e.Report().find("focal error vs fx, vs fy  1.010 %, 0.990 %"), std::string::npos)
+      << e.Report();
 }
 
 TEST(EvaluateCameras, CountsMissingPhotos) {
