@@ -677,7 +677,8 @@ class Mapper {
 
   BundleAdjustmentOptions BaseBundleOptions() const {
     BundleAdjustmentOptions ba;
-    ba.num_threads = options_.num_threads > 0 ? options_.num_threads : -1;
+    ba.num_threads =
+        options_.bundle_adjustment_threads > 0 ? options_.bundle_adjustment_threads : -1;
     ba.loss_scale = 1.0;
     return ba;
   }

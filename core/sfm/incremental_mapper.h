@@ -137,7 +137,13 @@ struct IncrementalMapperOptions {
   double focal_search_max_multiple = 5.0;
   // Models with fewer photos are dropped. [2, ...]
   int min_model_images = 2;
-  int num_threads = 0;
+  // Threads Ceres uses in bundle adjustment; <= 0 means all hardware threads. One by default,
+  // measured on the 2-core target machine: with two, Ceres 2.1 took 1.7x as long on 11
+  // synthetic photos (35k observations), 2.8x on 80 (512k observations), and the fountain-P11
+  // sparse stage 27.9 s instead of 20.9 s. The profile shows the Schur elimination's cell
+  // locks: every point's update of the reduced camera matrix touches the cells of the shared
+  // intrinsics block. Raise it on many-core machines only after measuring (reconduit benchmark).
+  int bundle_adjustment_threads = 1;
 
   bool Check(std::string* error) const;
 };

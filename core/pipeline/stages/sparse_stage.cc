@@ -222,7 +222,6 @@ StageResult SparseStage::Run(StageContext& context) const {
            << " matches refused: they would join two keypoints of one photo)";
 
   IncrementalMapperOptions mapper_options;
-  mapper_options.num_threads = context.options.num_threads;
   mapper_options.principal_point =
       context.options.principal_point == "center"   ? PrincipalPointMode::kCenter
       : context.options.principal_point == "refine" ? PrincipalPointMode::kRefine
