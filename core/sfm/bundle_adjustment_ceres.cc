@@ -21,8 +21,10 @@
 
 #include <array>
 #include <cmath>
+#include <glog/logging.h>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <unordered_map>
@@ -125,6 +127,17 @@ double RmsReprojectionError(const Reconstruction& reconstruction,
     sum += e * e;
   }
   return std::sqrt(sum / static_cast<double>(observations.size()));
+}
+
+// Ceres logs through glog: its warnings (e.g. "Linear solver failure ... dense Cholesky
+// factorization", from which Levenberg-Marquardt recovers by shrinking its trust region) would
+// reach terminals and job logs unformatted and alarming. They pass only when our own log level
+// is debug; glog errors always pass. Decided once per process, at the first adjustment.
+void QuietCeresUnlessDebugging() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    FLAGS_minloglevel = MinLogLevel() <= LogLevel::kDebug ? google::GLOG_INFO : google::GLOG_ERROR;
+  });
 }
 
 // The linear solver for `num_variable_images` under the options.
@@ -372,6 +385,7 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   solver_options.callbacks.push_back(&callback);  // Not owned by Ceres.
 
   ceres::Solver::Summary ceres_summary;
+  QuietCeresUnlessDebugging();
   ceres::Solve(solver_options, &problem, &ceres_summary);
   // Cancelled: Ceres did not update the copies and nothing is written back.
   if (callback.cancelled()) {
@@ -482,6 +496,7 @@ BundleAdjustmentSummary RefinePose(const PoseRefinementOptions& options,
   solver_options.num_threads = 1;  // 7 unknowns: threads would cost more than they save.
   solver_options.logging_type = ceres::SILENT;
   ceres::Solver::Summary ceres_summary;
+  QuietCeresUnlessDebugging();
   ceres::Solve(solver_options, &problem, &ceres_summary);
 
   summary.termination = TerminationName(ceres_summary.termination_type);
