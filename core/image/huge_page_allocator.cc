@@ -1,7 +1,7 @@
 #include "core/image/huge_page_allocator.h"
 
 #include <cstdint>
-#include <new>
+#include <memory>
 #include <sys/mman.h>
 
 namespace reconduit {
@@ -53,12 +53,14 @@ class HugePageAllocator final : public cv::MatAllocator {
         stride *= static_cast<std::size_t>(sizes[i]);
       }
     }
+    auto u = std::make_unique<cv::UMatData>(this);
     void* data = MapAligned(RoundUp(total, kHugePage));
-    if (data == nullptr) throw std::bad_alloc();
-    auto* u = new cv::UMatData(this);
+    if (data == nullptr) {  // Out of address space or mappings: let malloc try.
+      return cv::Mat::getStdAllocator()->allocate(dims, sizes, type, data0, step, flags, usage);
+    }
     u->data = u->origdata = static_cast<uchar*>(data);
     u->size = total;
-    return u;
+    return u.release();
   }
 
   bool allocate(cv::UMatData* u, cv::AccessFlag, cv::UMatUsageFlags) const override {

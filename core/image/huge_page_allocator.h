@@ -5,13 +5,18 @@
 // photo. With the default allocator each buffer is a fresh mmap(), so every 4 KiB page is a
 // page fault on first touch: on a virtual machine measured here those faults took more time
 // than SIFT itself (7.4 s system time for 2 photos, 5.8 s per photo in all). Advising the
-// kernel to use 2 MiB pages (madvise(MADV_HUGEPAGE), the kernel's default "madvise" mode for
-// transparent huge pages) makes that 512 times fewer faults: 1.4 s per photo.
+// kernel to use 2 MiB pages (madvise(MADV_HUGEPAGE); Debian's kernels run transparent huge
+// pages in "madvise" mode, where only advised ranges get them) makes that 512 times fewer
+// faults: 1.4 s per photo. With the defrag setting also "madvise" (Debian's default), the
+// first touch of a huge page may compact memory synchronously: a short stall on a host whose
+// memory is fragmented, still far cheaper than 512 faults.
 // Buffers below `kMinHugeBytes` go to OpenCV's standard allocator unchanged. Where the kernel
 // has huge pages disabled the advice is ignored and this behaves like the standard allocator.
 //
 // Usage: ScopedHugePageMatAllocator while a stage creates large cv::Mat; matrices allocated
 // in the scope may outlive it (each remembers its allocator, which is never destroyed).
+// Scopes must nest (each restores the default it found), which holds while one pipeline
+// runs per process, as in the worker and the command line.
 //
 // Thread-safety: the allocator itself is stateless and thread-safe; installing and removing
 // it changes OpenCV's process-wide default, so do that from one thread while no other thread

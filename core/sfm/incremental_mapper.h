@@ -142,7 +142,8 @@ struct IncrementalMapperOptions {
   // synthetic photos (35k observations), 2.8x on 80 (512k observations), and the fountain-P11
   // sparse stage 27.9 s instead of 20.9 s. The profile shows the Schur elimination's cell
   // locks: every point's update of the reduced camera matrix touches the cells of the shared
-  // intrinsics block. Raise it on many-core machines only after measuring (reconduit benchmark).
+  // intrinsics block. The pipeline's num_threads does not reach it: on a many-core machine,
+  // measure (reconduit benchmark) before raising it here.
   int bundle_adjustment_threads = 1;
 
   bool Check(std::string* error) const;
