@@ -48,8 +48,15 @@ struct RegisteredImage {
   // Keypoint positions in original-image pixels (a copy, so the reconstruction is
   // self-contained for bundle adjustment and export).
   std::vector<Eigen::Vector2d> keypoints;
+  // Standard deviation of each keypoint's position in pixels, the weight of its residuals in
+  // bundle adjustment (residual / stddev); empty means 1 px for every keypoint.
+  std::vector<double> keypoint_stddevs;
   // Point id observed by each keypoint, or kInvalidId.
   std::vector<int> point_for_keypoint;
+
+  double KeypointStddev(int keypoint) const {
+    return keypoint_stddevs.empty() ? 1.0 : keypoint_stddevs[keypoint];
+  }
 
   int NumPoints() const {
     int n = 0;

@@ -1,11 +1,13 @@
 // Bundle adjustment: joint non-linear least-squares refinement of camera poses, intrinsics and
 // 3-D points by minimising the reprojection error in pixels.
 //
-// The cost is  sum over observations of  rho(|| pi(K_c, cam_from_world_i * X_j) - x_ij ||^2),
-// where pi is exactly Camera::ImgFromCam (core/geometry/camera.h: pinhole with one focal
-// length, principal point and radial k1, k2 on normalised coordinates; pixel centres at
-// integers), x_ij is the keypoint in ORIGINAL-image pixels and rho a robust loss (trivial,
-// Huber or Cauchy) whose scale is in pixels. The problem is solved with Levenberg-Marquardt
+// The cost is  sum over observations of  rho(|| pi(K_c, cam_from_world_i * X_j) - x_ij ||^2
+// / s_ij^2), where pi is exactly Camera::ImgFromCam (core/geometry/camera.h: pinhole with one
+// focal length, principal point and radial k1, k2 on normalised coordinates; pixel centres at
+// integers), x_ij is the keypoint in ORIGINAL-image pixels, s_ij its positional standard
+// deviation in pixels (RegisteredImage::keypoint_stddevs, 1 when not given) and rho a robust
+// loss (trivial, Huber or Cauchy) whose scale is in units of s_ij (pixels when s_ij = 1).
+// The reported RMS errors are plain pixels. The problem is solved with Levenberg-Marquardt
 // and the Schur complement trick, which eliminates the points first (Triggs, McLauchlan,
 // Hartley & Fitzgibbon 2000, "Bundle adjustment -- a modern synthesis", §6.1); the solver is
 // Ceres, kept behind this interface (bundle_adjustment_ceres.cc is the only implementation).

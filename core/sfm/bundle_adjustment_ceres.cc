@@ -306,9 +306,10 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   for (const UsedObservation& o : used) {
     const RegisteredImage& image = rec.images.at(o.image_id);
     PoseBlock& pose = poses.at(o.image_id);
-    problem.AddResidualBlock(ReprojectionError::Create(image.keypoints[o.keypoint]), loss.get(),
-                             pose.rotation.data(), pose.translation.data(),
-                             points.at(o.point_id).data(), intrinsics.at(image.camera_id).data());
+    problem.AddResidualBlock(
+        ReprojectionError::Create(image.keypoints[o.keypoint], image.KeypointStddev(o.keypoint)),
+        loss.get(), pose.rotation.data(), pose.translation.data(), points.at(o.point_id).data(),
+        intrinsics.at(image.camera_id).data());
   }
 
   // Poses: rotation on the unit-quaternion manifold; constant blocks stay untouched.

@@ -463,6 +463,45 @@ TEST(BundleAdjust, NoisyObservationsRecoverFocal) {
   EXPECT_LT(errors.max_center, 0.05);  // Metres at ~6.7 m from the scene.
 }
 
+// Keypoints of two precisions (half at 0.3 px, half at 4 px, as fine and coarse SIFT scales):
+// declaring each one's standard deviation (keypoint_stddevs) must recover the camera much
+// better than weighing them all alike, which lets the coarse half dominate.
+TEST(BundleAdjust, KeypointStddevsWeighObservations) {
+  SyntheticSceneOptions scene_options = SmallSceneOptions();
+  const TestScene scene = MakeScene(scene_options);
+  const Reconstruction& truth = scene.truth;
+  Reconstruction noisy = truth;
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (auto& [id, image] : noisy.images) {
+    image.keypoint_stddevs.resize(image.keypoints.size());
+    for (std::size_t k = 0; k < image.keypoints.size(); ++k) {
+      const double stddev = k % 2 == 0 ? 0.3 : 4.0;
+      image.keypoint_stddevs[k] = stddev;
+      image.keypoints[k] += stddev * Eigen::Vector2d(normal(rng), normal(rng));
+    }
+  }
+  const Reconstruction start = Perturb(noisy, 2.0, 0.02, 0.02, 1.05, 0.02, /*seed=*/15);
+
+  Reconstruction weighted = start;
+  ASSERT_TRUE(BundleAdjust(GaugeFixedOptions(truth), CancelToken(), &weighted).success);
+  Reconstruction equal = start;
+  for (auto& [id, image] : equal.images) image.keypoint_stddevs.clear();
+  ASSERT_TRUE(BundleAdjust(GaugeFixedOptions(truth), CancelToken(), &equal).success);
+
+  const double f_true = truth.cameras.at(0).focal;
+  const double weighted_focal = std::abs(weighted.cameras.at(0).focal / f_true - 1.0);
+  const double equal_focal = std::abs(equal.cameras.at(0).focal / f_true - 1.0);
+  const PoseErrors weighted_pose = ComparePoses(truth, weighted);
+  const PoseErrors equal_pose = ComparePoses(truth, equal);
+  std::printf("focal error %.4f %% weighted, %.4f %% equal; rotation %.4f vs %.4f deg\n",
+              100 * weighted_focal, 100 * equal_focal, weighted_pose.max_rotation_deg,
+              equal_pose.max_rotation_deg);
+  EXPECT_LT(weighted_focal, 0.005);  // As NoisyObservationsRecoverFocal.
+  EXPECT_LT(weighted_pose.max_rotation_deg, 0.5 * equal_pose.max_rotation_deg);
+  EXPECT_LT(weighted_pose.max_center, 0.5 * equal_pose.max_center);
+}
+
 // (c) 5 % gross outliers: with a robust loss the poses are still recovered; with plain least
 // squares they are not (which shows that the outliers matter in this test).
 TEST(BundleAdjust, RobustLossWithstandsOutliers) {

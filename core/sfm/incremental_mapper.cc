@@ -551,6 +551,7 @@ class Mapper {
     image.name = source.name;
     image.cam_from_world = pose;
     image.keypoints = source.keypoints;
+    image.keypoint_stddevs = source.keypoint_stddevs;
     image.point_for_keypoint.assign(source.keypoints.size(), kInvalidId);
   }
 

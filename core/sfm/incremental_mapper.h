@@ -51,6 +51,9 @@ struct MapperImage {
   std::string name;
   int camera_id = kInvalidId;
   std::vector<Eigen::Vector2d> keypoints;  // Original-image pixels.
+  // Positional standard deviation of each keypoint in pixels (bundle adjustment weights);
+  // empty: 1 px for all. See RegisteredImage::keypoint_stddevs.
+  std::vector<double> keypoint_stddevs;
 };
 
 struct MapperPair {

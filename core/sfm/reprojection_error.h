@@ -7,7 +7,8 @@
 //   translation  3  cam_from_world translation.
 //   point        3  point in world coordinates.
 //   intrinsics   5  [f, cx, cy, k1, k2] in pixels (k1, k2 unitless).
-// The residual is the 2-vector  projection - observed  in pixels, where the projection is
+// The residual is the 2-vector  projection - observed  in pixels (ReprojectionError divides
+// it by the keypoint's standard deviation), where the projection is
 // exactly Camera::ImgFromCam(cam_from_world * point) (core/geometry/camera.h): the same
 // quaternion rotation, division by depth, radial distortion 1 + k1 r² + k2 r⁴ on normalised
 // coordinates, then f and the principal point. Evaluation fails (returns false) for a point
@@ -56,10 +57,13 @@ bool ProjectionResidual(const T* rotation,
   return true;
 }
 
-// Full bundle adjustment: pose, point and intrinsics are parameters.
+// Full bundle adjustment: pose, point and intrinsics are parameters. The residual is divided
+// by the keypoint's positional standard deviation (whitening), so that a keypoint known to
+// within 1 px weighs nine times as much as one known to within 3 px.
 class ReprojectionError {
  public:
-  explicit ReprojectionError(const Eigen::Vector2d& observed) : observed_(observed) {}
+  explicit ReprojectionError(const Eigen::Vector2d& observed, double stddev = 1.0)
+      : observed_(observed), inverse_stddev_(1.0 / stddev) {}
 
   template <typename T>
   bool operator()(const T* rotation,
@@ -67,17 +71,24 @@ class ReprojectionError {
                   const T* point,
                   const T* intrinsics,
                   T* residual) const {
-    return ProjectionResidual(rotation, translation, point, intrinsics, observed_, residual);
+    if (!ProjectionResidual(rotation, translation, point, intrinsics, observed_, residual)) {
+      return false;
+    }
+    residual[0] *= inverse_stddev_;
+    residual[1] *= inverse_stddev_;
+    return true;
   }
 
   // A new cost function; the caller (normally ceres::Problem) takes ownership.
-  static ceres::CostFunction* Create(const Eigen::Vector2d& observed) {
+  // @param stddev  the keypoint's positional standard deviation in pixels, > 0.
+  static ceres::CostFunction* Create(const Eigen::Vector2d& observed, double stddev = 1.0) {
     return new ceres::AutoDiffCostFunction<ReprojectionError, 2, 4, 3, 3, kNumIntrinsics>(
-        new ReprojectionError(observed));
+        new ReprojectionError(observed, stddev));
   }
 
  private:
   Eigen::Vector2d observed_;
+  double inverse_stddev_;
 };
 
 // Motion only: the point and the intrinsics are constants stored in the functor, so the

@@ -38,6 +38,16 @@ constexpr double kFocalDisagreement = 0.15;
 // and fountain-P11 (0.79) are above and keep it.
 constexpr double kMinDistortionReach = 0.65;
 
+// A SIFT keypoint is the centre of a blob of Gaussian scale sigma = size / 2 (OpenCV's size
+// is the diameter 2 sigma); its position is known to about sigma, and never better than
+// ~1 px at the finest scales. Bundle adjustment weighs each observation by 1 / stddev^2 with
+// stddev = max(1, size / 2) px. Measured on templeSparseRing over four feature sets (SIFT
+// contrast threshold 0.005, 0.01, 0.02 (ours), 0.03): focal error 0.25, 1.01, 0.06, 0.34 %
+// against 0.57, 1.06, 0.72, 0.66 % with equal weights, centre error 0.19, 0.43, 0.24, 0.38 %
+// of the radius against 0.24, 0.49, 0.31, 0.41 %; fountain-P11 about the same (3.17 against
+// 3.23 mm, focal 0.039 against 0.048 % from fx).
+double KeypointStddev(const Keypoint& kp) { return std::max(1.0, 0.5 * kp.scale); }
+
 // The 95th percentile, over every track observation, of the keypoint's distance from its
 // photo's centre as a share of the half-diagonal.
 double ObservationReach(const MapperInput& input) {
@@ -134,7 +144,10 @@ StageResult SparseStage::Run(StageContext& context) const {
     MapperImage mapper_image;
     mapper_image.name = image.name;
     mapper_image.camera_id = it->second;
-    for (const Keypoint& kp : features->keypoints) mapper_image.keypoints.emplace_back(kp.x, kp.y);
+    for (const Keypoint& kp : features->keypoints) {
+      mapper_image.keypoints.emplace_back(kp.x, kp.y);
+      mapper_image.keypoint_stddevs.push_back(KeypointStddev(kp));
+    }
     input.images[image.index] = std::move(mapper_image);
   }
 
