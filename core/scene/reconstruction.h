@@ -55,7 +55,9 @@ struct RegisteredImage {
   std::vector<int> point_for_keypoint;
 
   double KeypointStddev(int keypoint) const {
-    return keypoint_stddevs.empty() ? 1.0 : keypoint_stddevs[keypoint];
+    if (keypoint_stddevs.empty()) return 1.0;
+    THROW_CHECK_EQ(keypoint_stddevs.size(), keypoints.size()) << "image " << image_id;
+    return keypoint_stddevs[keypoint];
   }
 
   int NumPoints() const {

@@ -500,6 +500,11 @@ TEST(BundleAdjust, KeypointStddevsWeighObservations) {
   EXPECT_LT(weighted_focal, 0.005);  // As NoisyObservationsRecoverFocal.
   EXPECT_LT(weighted_pose.max_rotation_deg, 0.5 * equal_pose.max_rotation_deg);
   EXPECT_LT(weighted_pose.max_center, 0.5 * equal_pose.max_center);
+
+  // One standard deviation per keypoint, or none: anything else is a caller's error.
+  Reconstruction inconsistent = start;
+  inconsistent.images.at(3).keypoint_stddevs.pop_back();
+  EXPECT_THROW(BundleAdjust(GaugeFixedOptions(truth), CancelToken(), &inconsistent), CheckError);
 }
 
 // (c) 5 % gross outliers: with a robust loss the poses are still recovered; with plain least
