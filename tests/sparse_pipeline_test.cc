@@ -11,9 +11,11 @@
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
+#include <fstream>
 #include <random>
 
 namespace reconduit {
@@ -89,6 +91,16 @@ TEST(SparsePipeline, RecoversRenderedCamerasWithoutExif) {
   EXPECT_NEAR(recovered.focal, kFocal, 0.005 * kFocal);
   EXPECT_NEAR(recovered.k1, 0.0, 0.01);
   EXPECT_LT(model->MeanReprojectionError(), 0.5);
+
+  // The calibration record carries the final focal and its precision (one sigma, pixels).
+  std::ifstream calibration_file(workspace.StageDir("sparse") / "calibration.json");
+  const nlohmann::json calibration = nlohmann::json::parse(calibration_file);
+  const nlohmann::json& record = calibration.at("cameras").at(0);
+  EXPECT_DOUBLE_EQ(record.at("final_focal").get<double>(), recovered.focal);
+  const double focal_stddev = record.at("stddev").at("focal").get<double>();
+  std::printf("focal %.3f +- %.3f px (truth %.1f)\n", recovered.focal, focal_stddev, kFocal);
+  EXPECT_GT(focal_stddev, 0.0);
+  EXPECT_LT(focal_stddev, 0.005 * kFocal);
   fs::remove_all(root);
 }
 

@@ -10,11 +10,16 @@
 #include "core/util/timer.h"
 #include "worker/cli_common.h"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -65,16 +70,33 @@ void PrintRow(const std::string& name, const std::string& status, double seconds
             << std::setprecision(1) << mib << "\n";
 }
 
+// Per camera id, the focal length's standard deviation that the sparse stage recorded in
+// calibration.json (empty when absent or unreadable: the benchmark then prints no +-).
+std::map<int, double> ReadFocalStddev(const fs::path& calibration_json) {
+  std::map<int, double> stddev;
+  std::ifstream in(calibration_json);
+  const nlohmann::json calibration = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (!calibration.is_object() || !calibration.contains("cameras")) return stddev;
+  for (const nlohmann::json& camera : calibration["cameras"]) {
+    if (camera.contains("camera_id") && camera.contains("stddev")) {
+      stddev[camera["camera_id"].get<int>()] = camera["stddev"].value("focal", 0.0);
+    }
+  }
+  return stddev;
+}
+
 void PrintModel(const Reconstruction& model,
                 int total_photos,
-                const std::optional<std::vector<GroundTruthCamera>>& ground_truth) {
+                const std::optional<std::vector<GroundTruthCamera>>& ground_truth,
+                const std::map<int, double>& focal_stddev = {}) {
   std::cout << "  registered          " << model.images.size() << "/" << total_photos << "\n"
             << "  points              " << model.points.size() << "\n"
             << "  mean reprojection   " << std::setprecision(3) << model.MeanReprojectionError()
             << " px\n";
   for (const auto& [id, camera] : model.cameras) {
-    std::cout << "  camera " << id << "            f " << std::setprecision(2) << camera.focal
-              << " px, k1 " << std::setprecision(4) << camera.k1 << ", k2 " << camera.k2 << "\n";
+    std::cout << "  camera " << id << "            f " << std::setprecision(2) << camera.focal;
+    if (focal_stddev.contains(id)) std::cout << " +- " << focal_stddev.at(id);
+    std::cout << " px, k1 " << std::setprecision(4) << camera.k1 << ", k2 " << camera.k2 << "\n";
   }
   if (ground_truth) {
     std::istringstream report(EvaluateCameras(model, *ground_truth).Report());
@@ -214,6 +236,24 @@ int RunBenchmark(const std::vector<std::string>& args) {
       work.empty() ? fs::temp_directory_path() / "reconduit-benchmark" : fs::path(work);
   Workspace workspace;
   workspace.images = ListInputImages(images);
+  if (ground_truth) {
+    // Compare only the photos given: a ground-truth file may describe a larger set (one
+    // Middlebury _par.txt for every view) of which the folder holds a subset.
+    std::set<std::string> names;
+    for (const InputImage& image : workspace.images) names.insert(image.name);
+    const std::size_t described = ground_truth->size();
+    std::erase_if(*ground_truth,
+                  [&](const GroundTruthCamera& camera) { return !names.contains(camera.name); });
+    if (ground_truth->empty()) {
+      std::cerr << "reconduit: ground truth '" << gt_path << "' describes none of the photos in '"
+                << images.string() << "'\n";
+      return 2;
+    }
+    if (ground_truth->size() < described) {
+      std::cout << "Ground truth: " << ground_truth->size() << " of its " << described
+                << " cameras are photos of this folder; comparing those\n";
+    }
+  }
   // Measure from scratch unless asked to reuse the finished stages of an earlier run (for
   // tuning a late stage: delete its folder under work/ and run again with --resume).
   if (!resume) fs::remove_all(work_dir / "reconduit", ec);
@@ -240,7 +280,8 @@ int RunBenchmark(const std::vector<std::string>& args) {
   std::optional<Reconstruction> ours;
   auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
   if (model.ok()) {
-    PrintModel(*model, static_cast<int>(workspace.images.size()), ground_truth);
+    PrintModel(*model, static_cast<int>(workspace.images.size()), ground_truth,
+               ReadFocalStddev(workspace.StageDir("sparse") / "calibration.json"));
     ours = std::move(*model);
   }
 

@@ -17,6 +17,7 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <map>
@@ -57,7 +58,11 @@ struct RegisteredImage {
   double KeypointStddev(int keypoint) const {
     if (keypoint_stddevs.empty()) return 1.0;
     THROW_CHECK_EQ(keypoint_stddevs.size(), keypoints.size()) << "image " << image_id;
-    return keypoint_stddevs[keypoint];
+    const double stddev = keypoint_stddevs[keypoint];
+    // A weight of 1 / stddev: zero, negative or NaN would blow up or flip the residual.
+    THROW_CHECK(stddev > 0.0 && std::isfinite(stddev))
+        << "image " << image_id << " keypoint " << keypoint << " stddev " << stddev;
+    return stddev;
   }
 
   int NumPoints() const {

@@ -11,6 +11,7 @@
 #include "core/util/parallel.h"
 #include "core/util/timer.h"
 
+#include <ceres/covariance.h>
 #include <ceres/iteration_callback.h>
 #include <ceres/loss_function.h>
 #include <ceres/manifold.h>
@@ -192,6 +193,57 @@ int AutoScaleFixingIndex(const Rigid3d& cam_from_world, const Rigid3d* reference
 
 std::string TerminationName(ceres::TerminationType type) {
   return ceres::TerminationTypeToString(type);
+}
+
+// Fills summary->intrinsics_stddev and variance_factor from the solved `problem` (see
+// BundleAdjustmentOptions::estimate_intrinsics_stddev). The covariance is that of the
+// whitened residuals, (J^T J)^-1, times the a posteriori variance factor.
+void EstimateIntrinsicsStddev(int num_threads,
+                              const std::map<int, IntrinsicsBlock>& intrinsics,
+                              ceres::Problem* problem,
+                              BundleAdjustmentSummary* summary) {
+  std::vector<std::pair<const double*, const double*>> wanted;
+  for (const auto& [camera_id, block] : intrinsics) {
+    if (!problem->IsParameterBlockConstant(block.data())) {
+      wanted.emplace_back(block.data(), block.data());
+    }
+  }
+  if (wanted.empty()) return;
+  std::vector<double*> blocks;
+  problem->GetParameterBlocks(&blocks);
+  int parameters = 0;
+  for (double* block : blocks) {
+    if (!problem->IsParameterBlockConstant(block)) {
+      parameters += problem->ParameterBlockTangentSize(block);
+    }
+  }
+  const int redundancy = problem->NumResiduals() - parameters;
+  if (redundancy <= 0) return;
+  const double variance_factor = 2.0 * summary->final_cost / redundancy;
+
+  ceres::Covariance::Options covariance_options;
+  covariance_options.algorithm_type = ceres::SPARSE_QR;  // Detects rank deficiency.
+  covariance_options.num_threads = num_threads;
+  ceres::Covariance covariance(covariance_options);
+  Timer timer;
+  if (!covariance.Compute(wanted, problem)) {
+    LOG_DEBUG << "BA: intrinsics covariance not estimable (is the gauge fixed?)";
+    return;
+  }
+  LOG_DEBUG << "BA: intrinsics covariance in " << timer.ElapsedSeconds() << " s";
+  summary->variance_factor = variance_factor;
+  for (const auto& [camera_id, block] : intrinsics) {
+    if (problem->IsParameterBlockConstant(block.data())) continue;
+    // Ambient space: the subset manifold's held entries come out as zero rows and columns.
+    double c[kNumIntrinsics * kNumIntrinsics];
+    if (!covariance.GetCovarianceBlock(block.data(), block.data(), c)) continue;
+    const auto stddev = [&](int i) {
+      return std::sqrt(std::max(0.0, variance_factor * c[i * kNumIntrinsics + i]));
+    };
+    summary->intrinsics_stddev[camera_id] = {stddev(kIntrinsicsFocal), stddev(kIntrinsicsCx),
+                                             stddev(kIntrinsicsCy), stddev(kIntrinsicsK1),
+                                             stddev(kIntrinsicsK2)};
+  }
 }
 
 }  // namespace
@@ -426,6 +478,9 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   summary.final_rms_px = RmsReprojectionError(rec, used);
   summary.success = true;
   summary.message = ceres_summary.message;
+  if (options.estimate_intrinsics_stddev) {
+    EstimateIntrinsicsStddev(solver_options.num_threads, intrinsics, &problem, &summary);
+  }
   summary.time_seconds = timer.ElapsedSeconds();
   LOG_DEBUG << summary.BriefReport();
   return summary;

@@ -56,6 +56,7 @@ class Mapper {
 
   std::vector<Reconstruction> Run() {
     std::vector<Reconstruction> models;
+    std::vector<std::map<int, IntrinsicsStddev>> stddevs;  // Of each model's cameras.
     progress_.Restart(input_.images.size(), "registering photos");
     while (true) {
       cancel_.ThrowIfCancelled();
@@ -64,6 +65,7 @@ class Mapper {
       track_point_.clear();
       point_track_.clear();
       Reconstruction model;
+      final_stddev_.clear();
       if (!Initialize(&model)) break;
       Grow(&model);
       Finish(&model);
@@ -74,14 +76,20 @@ class Mapper {
              std::to_string(model.points.size()) + " points, mean reprojection error " +
              std::to_string(model.MeanReprojectionError()) + " px");
         models.push_back(std::move(model));
+        stddevs.push_back(final_stddev_);
       }
     }
-    std::stable_sort(models.begin(), models.end(),
-                     [](const Reconstruction& a, const Reconstruction& b) {
-                       return a.images.size() > b.images.size();
-                     });
+    std::vector<std::size_t> order(models.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return models[a].images.size() > models[b].images.size();
+    });
+    std::vector<Reconstruction> sorted;
+    for (std::size_t i : order) sorted.push_back(std::move(models[i]));
+    models = std::move(sorted);
     ResolveSharedPhotos(&models);
     if (summary_ != nullptr) {
+      if (!order.empty()) summary_->intrinsics_stddev = stddevs[order.front()];
       summary_->num_models = static_cast<int>(models.size());
       summary_->num_images = static_cast<int>(input_.images.size());
       summary_->num_registered = 0;
@@ -480,6 +488,7 @@ class Mapper {
     const BundleAdjustmentSummary summary = BundleAdjust(ba, cancel_, model);
     LOG_INFO << "sfm: global adjustment of " << model->images.size()
              << " photos: " << summary.BriefReport();
+    principal_point_refined_ = ba.refine_principal_point;
     if (principal_point && options_.principal_point == PrincipalPointMode::kAuto &&
         summary.success) {
       DecidePrincipalPoint(ba, model);
@@ -522,6 +531,7 @@ class Mapper {
          << " (BIC price " << price << "), shift " << max_shift << " px: ";
     if (drop > price && plausible) {
       *model = std::move(trial);
+      principal_point_refined_ = true;
       line << "refined";
       for (const auto& [id, camera] : model->cameras) {
         line << " [camera " << id << ": " << camera.cx << ", " << camera.cy << "]";
@@ -538,6 +548,16 @@ class Mapper {
     for (const auto& [id, image] : model->images) TriangulateImage(model, id);
     GlobalAdjust(model, /*final=*/false);
     GlobalAdjust(model, /*final=*/true);
+    // Back to the optimum without the points the last filter removed, and the precision of
+    // the intrinsics there.
+    BundleAdjustmentOptions ba = GlobalBundleOptions(*model, /*final=*/true);
+    ba.refine_principal_point = principal_point_refined_;
+    ba.estimate_intrinsics_stddev = true;
+    ba.max_num_iterations = 3;  // From an optimum less a few points: a polish.
+    const BundleAdjustmentSummary summary = BundleAdjust(ba, cancel_, model);
+    LOG_INFO << "sfm: final adjustment of " << model->images.size()
+             << " photos: " << summary.BriefReport();
+    final_stddev_ = summary.intrinsics_stddev;
   }
 
   // ---------------------------------------------------------------------------------------
@@ -696,6 +716,9 @@ class Mapper {
   std::set<int> used_;                        // Photos registered in an earlier model.
   std::set<std::pair<int, int>> tried_initial_;
   std::map<int, Camera> cameras_;  // Initial intrinsics (input_.cameras unless replaced).
+  // The intrinsics' standard deviations from the current model's final adjustment.
+  std::map<int, IntrinsicsStddev> final_stddev_;
+  bool principal_point_refined_ = false;  // By the current model's final adjustment.
   std::size_t max_images_ = std::numeric_limits<std::size_t>::max();  // Per model (trials).
   int init_image1_ = kInvalidId;
   int init_image2_ = kInvalidId;

@@ -34,6 +34,7 @@
 
 #include "core/feature/matcher.h"
 #include "core/scene/reconstruction.h"
+#include "core/sfm/bundle_adjustment.h"
 #include "core/sfm/tracks.h"
 #include "core/util/cancel.h"
 #include "core/util/progress.h"
@@ -162,6 +163,9 @@ struct MapperSummary {
   // Per camera id: the focal length the reconstruction started from after the focal search
   // (only cameras that were searched).
   std::map<int, double> searched_focal;
+  // Per camera id of the largest model: the standard deviations of its refined intrinsics
+  // from the final bundle adjustment (BundleAdjustmentSummary::intrinsics_stddev).
+  std::map<int, IntrinsicsStddev> intrinsics_stddev;
 };
 
 std::vector<Reconstruction> ReconstructIncrementally(const MapperInput& input,

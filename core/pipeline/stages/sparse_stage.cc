@@ -259,6 +259,21 @@ StageResult SparseStage::Run(StageContext& context) const {
 
   for (Reconstruction& model : models)
     ColourPoints(*images, context.options, context.cancel, &model);
+  // The largest model's calibration and its precision (one standard deviation, from the
+  // final bundle adjustment; absent when it could not be estimated).
+  for (nlohmann::json& record : calibration) {
+    const int id = record["camera_id"].get<int>();
+    auto camera = models.front().cameras.find(id);
+    if (camera == models.front().cameras.end()) continue;
+    record["final_focal"] = camera->second.focal;
+    auto stddev = summary.intrinsics_stddev.find(id);
+    if (stddev == summary.intrinsics_stddev.end()) continue;
+    const IntrinsicsStddev& s = stddev->second;
+    record["stddev"] = {{"focal", s.focal}, {"cx", s.cx}, {"cy", s.cy}, {"k1", s.k1}, {"k2", s.k2}};
+    LOG_INFO << "sparse: camera " << id << ": focal " << camera->second.focal << " +- " << s.focal
+             << " px (1 sigma), principal point (" << camera->second.cx << " +- " << s.cx << ", "
+             << camera->second.cy << " +- " << s.cy << ")";
+  }
 
   nlohmann::json model_summaries = nlohmann::json::array();
   for (std::size_t k = 0; k < models.size(); ++k) {
