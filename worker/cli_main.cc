@@ -36,7 +36,7 @@ constexpr char kUsage[] =
     "                        [--work DIR] [--threads N]\n"
     "  reconduit options\n"
     "  reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE] [--options FILE]\n"
-    "                      [--work DIR] [--threads N]\n"
+    "                      [--work DIR] [--threads N] [--resume]\n"
     "\n"
     "reconstruct  runs the pipeline on every file in <images_dir> (files that are not usable\n"
     "             photos are reported and skipped) and writes the results to <out_dir>.\n"
@@ -49,7 +49,9 @@ constexpr char kUsage[] =
     "per-stage\n"
     "             time and peak memory, counts, and with --gt (Strecha .camera folder or\n"
     "             Middlebury *_par.txt) the camera accuracy; --colmap also runs COLMAP (CPU) on\n"
-    "             the same photos and prints the ratios.\n";
+    "             the same photos and prints the ratios. Ground truth of photos not in\n"
+    "             <images_dir> is ignored. --resume reuses the finished stages of the last\n"
+    "             run in the same --work folder (those whose options did not change).\n";
 
 CancelToken g_cancel;
 void OnSignal(int) { g_cancel.RequestCancel(); }

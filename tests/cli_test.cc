@@ -1,0 +1,113 @@
+// The `reconduit` command line as a user runs it: bad input gets exit status 2 and a message
+// that names the problem; the benchmark compares only the ground-truth cameras of the photos
+// it was given.
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+#ifndef RECONDUIT_CLI_BINARY
+#error "RECONDUIT_CLI_BINARY must name the reconduit executable"
+#endif
+
+namespace reconduit {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Outcome {
+  int exit_status = -1;
+  std::string output;  // stdout and stderr together.
+};
+
+Outcome RunCli(const std::string& arguments) {
+  const std::string command = std::string(RECONDUIT_CLI_BINARY) + " " + arguments + " 2>&1";
+  Outcome outcome;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return outcome;
+  char buffer[4096];
+  for (std::size_t n; (n = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0;) {
+    outcome.output.append(buffer, n);
+  }
+  const int status = pclose(pipe);
+  if (WIFEXITED(status)) outcome.exit_status = WEXITSTATUS(status);
+  return outcome;
+}
+
+// A Strecha .camera file: K, distortion, world-from-camera rotation, centre, size.
+void WriteStrechaCamera(const fs::path& path) {
+  std::ofstream(path) << "500 0 99.5\n0 500 74.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n"
+                         "0 0 0\n200 150\n";
+}
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ =
+        fs::temp_directory_path() /
+        ("reconduit_cli_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "images");
+    fs::create_directories(root_ / "gt");
+    cv::Mat noise(150, 200, CV_8UC3);
+    cv::randu(noise, 0, 255);
+    for (const char* name : {"a.jpg", "b.jpg"}) {
+      ASSERT_TRUE(cv::imwrite((root_ / "images" / name).string(), noise));
+    }
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  std::string Quoted(const fs::path& path) const { return "'" + path.string() + "'"; }
+
+  fs::path root_;
+};
+
+TEST_F(CliTest, NoCommandPrintsUsage) {
+  const Outcome outcome = RunCli("");
+  EXPECT_EQ(outcome.exit_status, 2);
+  EXPECT_NE(outcome.output.find("Usage:"), std::string::npos) << outcome.output;
+}
+
+TEST_F(CliTest, ReconstructRejectsMissingFolder) {
+  const Outcome outcome =
+      RunCli("reconstruct " + Quoted(root_ / "no-such-folder") + " " + Quoted(root_ / "out"));
+  EXPECT_EQ(outcome.exit_status, 2);
+  EXPECT_NE(outcome.output.find("no-such-folder"), std::string::npos) << outcome.output;
+  EXPECT_FALSE(fs::exists(root_ / "out"));
+}
+
+TEST_F(CliTest, BenchmarkRejectsUnreadableGroundTruth) {
+  const Outcome outcome = RunCli("benchmark " + Quoted(root_ / "images") + " --gt " +
+                                 Quoted(root_ / "gt") + " --work " + Quoted(root_ / "work"));
+  EXPECT_EQ(outcome.exit_status, 2);  // An empty folder: no .camera files.
+  EXPECT_NE(outcome.output.find("ground truth"), std::string::npos) << outcome.output;
+}
+
+TEST_F(CliTest, BenchmarkRejectsGroundTruthOfOtherPhotos) {
+  WriteStrechaCamera(root_ / "gt" / "other.jpg.camera");
+  const Outcome outcome = RunCli("benchmark " + Quoted(root_ / "images") + " --gt " +
+                                 Quoted(root_ / "gt") + " --work " + Quoted(root_ / "work"));
+  EXPECT_EQ(outcome.exit_status, 2);
+  EXPECT_NE(outcome.output.find("describes none of the photos"), std::string::npos)
+      << outcome.output;
+}
+
+TEST_F(CliTest, BenchmarkComparesOnlyTheGivenPhotos) {
+  for (const char* name : {"a.jpg", "b.jpg", "c.jpg"}) {
+    WriteStrechaCamera(root_ / "gt" / (std::string(name) + ".camera"));
+  }
+  const Outcome outcome =
+      RunCli("benchmark " + Quoted(root_ / "images") + " --gt " + Quoted(root_ / "gt") +
+             " --until ingest --work " + Quoted(root_ / "work"));
+  EXPECT_EQ(outcome.exit_status, 0) << outcome.output;
+  EXPECT_NE(outcome.output.find("2 of its 3 cameras"), std::string::npos) << outcome.output;
+  EXPECT_NE(outcome.output.find("ingest"), std::string::npos) << outcome.output;
+}
+
+}  // namespace
+}  // namespace reconduit
