@@ -5,7 +5,9 @@
 # docker/Dockerfile all call it. It is idempotent and returns in well under a second when
 # everything is already installed (it asks dpkg first and only calls apt-get for what is missing).
 #
-# Usage: docker/install-deps.sh [build|runtime]   (default: build = runtime + compilers + -dev)
+# Usage: docker/install-deps.sh [build|test|runtime]
+#   build (default): runtime + compilers + -dev packages; test: build + what the browser test
+#   needs (chromium, Node.js and npm).
 set -euo pipefail
 
 mode="${1:-build}"
@@ -29,10 +31,21 @@ build_packages=(
   curl zip unzip
 )
 
+# The web page's browser test (tests/web): Debian's chromium, driven from Node.js.
+test_packages=(chromium)
+
 case "$mode" in
   runtime) wanted=("${runtime_packages[@]}") ;;
   build) wanted=("${runtime_packages[@]}" "${build_packages[@]}") ;;
-  *) echo "usage: $0 [build|runtime]" >&2; exit 2 ;;
+  test)
+    wanted=("${runtime_packages[@]}" "${build_packages[@]}" "${test_packages[@]}")
+    # Node.js and npm: Debian's, unless a node with npm is already installed some other way
+    # (a second one would conflict with it).
+    if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+      wanted+=(nodejs npm)
+    fi
+    ;;
+  *) echo "usage: $0 [build|test|runtime]" >&2; exit 2 ;;
 esac
 
 missing=()

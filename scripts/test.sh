@@ -6,7 +6,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-bash docker/install-deps.sh build
+bash docker/install-deps.sh test
+# playwright-core for the web page's browser test, as pinned in tests/web/package-lock.json.
+npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
 cmake --preset ci >/dev/null
 cmake --build --preset ci
 ctest --preset ci -j "$(nproc)" --label-exclude long

@@ -1,0 +1,436 @@
+// Reconduit's browser page: upload photos, follow jobs, look at the results. Plain JavaScript
+// against the JSON API (README, "Using the API"); no build step, nothing loaded from elsewhere.
+'use strict';
+
+const API = '/api/v1';
+const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'package'];
+const FINAL = new Set(['succeeded', 'failed', 'canceled']);
+
+const $ = (id) => document.getElementById(id);
+
+// An element with attributes and children (strings become text: nothing is parsed as HTML).
+function el(tag, attributes = {}, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attributes)) {
+    if (value === undefined || value === null || value === false) continue;
+    if (key.startsWith('on')) node.addEventListener(key.slice(2), value);
+    else node.setAttribute(key, value === true ? '' : value);
+  }
+  for (const child of children.flat()) {
+    if (child === undefined || child === null) continue;
+    node.append(child instanceof Node ? child : String(child));
+  }
+  return node;
+}
+
+// The service's error text: {"error": {"code", "message"}} or the status line.
+async function errorText(response) {
+  try {
+    const body = await response.json();
+    if (body && body.error && body.error.message) return body.error.message;
+  } catch (e) { /* not JSON */ }
+  return `${response.status} ${response.statusText}`;
+}
+
+async function api(path, options = {}) {
+  const response = await fetch(API + path, options);
+  if (!response.ok) throw new Error(await errorText(response));
+  return response.json();
+}
+
+function duration(seconds) {
+  if (seconds === null || seconds === undefined) return '';
+  if (seconds < 60) return `${seconds.toFixed(seconds < 10 ? 1 : 0)} s`;
+  const m = Math.floor(seconds / 60), s = Math.round(seconds % 60);
+  if (m < 60) return `${m} min ${s} s`;
+  return `${Math.floor(m / 60)} h ${m % 60} min`;
+}
+
+function bytes(n) {
+  if (n < 1024) return `${n} B`;
+  if (n < 1024 * 1024) return `${(n / 1024).toFixed(1)} KiB`;
+  if (n < 1024 * 1024 * 1024) return `${(n / 1024 / 1024).toFixed(1)} MiB`;
+  return `${(n / 1024 / 1024 / 1024).toFixed(2)} GiB`;
+}
+
+function when(iso) {
+  return iso ? new Date(iso).toLocaleString() : '';
+}
+
+function badge(job) {
+  const text = job.cancel_requested && !FINAL.has(job.state) ? 'canceling' : job.state;
+  return el('span', {class: `badge ${job.state}`}, text);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Health
+
+async function checkHealth() {
+  const status = $('health');
+  try {
+    const response = await fetch('/healthz');
+    const body = await response.json();
+    const up = response.ok && body.status === 'ok';
+    status.textContent = up ? 'The service is up.' : `The service answered: ${JSON.stringify(body)}`;
+    status.className = `status ${up ? 'ok' : 'bad'}`;
+  } catch (e) {
+    status.textContent = `The service did not answer: ${e.message}`;
+    status.className = 'status bad';
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Upload
+
+let chosenFiles = [];
+
+function choose(files) {
+  chosenFiles = Array.from(files);
+  const total = chosenFiles.reduce((sum, f) => sum + f.size, 0);
+  $('drop-text').textContent = chosenFiles.length === 0
+      ? 'Drop photos (JPEG, PNG, TIFF) or one zip of photos here, or click to choose.'
+      : `${chosenFiles.length} file${chosenFiles.length === 1 ? '' : 's'}, ${bytes(total)}: ` +
+        chosenFiles.slice(0, 6).map((f) => f.name).join(', ') +
+        (chosenFiles.length > 6 ? ', …' : '');
+  $('submit').disabled = chosenFiles.length === 0;
+  $('upload-status').textContent = '';
+  $('upload-status').className = '';
+}
+
+function isZip(file) {
+  return file.type === 'application/zip' || file.type === 'application/x-zip-compressed' ||
+         file.name.toLowerCase().endsWith('.zip');
+}
+
+function upload(event) {
+  event.preventDefault();
+  if (chosenFiles.length === 0) return;
+  const statusLine = $('upload-status');
+  const optionsText = $('options').value.trim();
+  if (optionsText) {
+    try {
+      const parsed = JSON.parse(optionsText);
+      if (typeof parsed !== 'object' || parsed === null || Array.isArray(parsed)) {
+        throw new Error('the options must be one JSON object');
+      }
+    } catch (e) {
+      statusLine.textContent = `Options: ${e.message}`;
+      statusLine.className = 'error';
+      return;
+    }
+  }
+  const zips = chosenFiles.filter(isZip);
+  if (zips.length > 0 && chosenFiles.length > 1) {
+    statusLine.textContent = 'Send either photos or one zip, not both.';
+    statusLine.className = 'error';
+    return;
+  }
+  const request = new XMLHttpRequest();
+  let body;
+  if (zips.length === 1) {
+    // A zip goes as the body; options then travel in the query string.
+    const query = optionsText ? `?options=${encodeURIComponent(optionsText)}` : '';
+    request.open('POST', `${API}/jobs${query}`);
+    request.setRequestHeader('Content-Type', 'application/zip');
+    body = zips[0];
+  } else {
+    request.open('POST', `${API}/jobs`);
+    body = new FormData();
+    if (optionsText) body.append('options', optionsText);
+    for (const file of chosenFiles) body.append('images', file, file.name);
+  }
+  const bar = $('upload-progress');
+  bar.hidden = false;
+  bar.value = 0;
+  $('submit').disabled = true;
+  statusLine.className = '';
+  statusLine.textContent = 'Uploading…';
+  request.upload.addEventListener('progress', (e) => {
+    if (!e.lengthComputable) return;
+    bar.value = e.loaded / e.total;
+    statusLine.textContent = `Uploading: ${bytes(e.loaded)} of ${bytes(e.total)}`;
+  });
+  request.addEventListener('load', () => {
+    bar.hidden = true;
+    let answer = null;
+    try { answer = JSON.parse(request.responseText); } catch (e) { /* not JSON */ }
+    if (request.status === 201 && answer) {
+      statusLine.textContent = `Job created with ${answer.counts.images} photos.`;
+      choose([]);
+      $('files').value = '';
+      refreshJobs();
+      select(answer.id);
+    } else {
+      const message = answer && answer.error ? answer.error.message
+                                             : `${request.status} ${request.statusText}`;
+      statusLine.textContent = `Not accepted: ${message}`;
+      statusLine.className = 'error';
+      $('submit').disabled = false;
+    }
+  });
+  request.addEventListener('error', () => {
+    bar.hidden = true;
+    statusLine.textContent = 'The upload failed: the connection was lost.';
+    statusLine.className = 'error';
+    $('submit').disabled = false;
+  });
+  request.send(body);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Job list
+
+let selectedId = null;
+
+async function refreshJobs() {
+  let list;
+  try {
+    list = await api('/jobs?limit=50');
+  } catch (e) {
+    $('jobs-empty').hidden = false;
+    $('jobs-empty').textContent = `The job list could not be read: ${e.message}`;
+    return false;
+  }
+  const rows = list.jobs.map((job) => el('tr', {class: job.id === selectedId ? 'selected' : null},
+      el('td', {}, when(job.created_at)),
+      el('td', {}, job.counts ? job.counts.images : ''),
+      el('td', {}, badge(job)),
+      el('td', {},
+         el('progress', {max: 1, value: job.progress || 0}), ' ',
+         FINAL.has(job.state) ? '' : (job.stage || '')),
+      el('td', {}, el('button', {type: 'button', onclick: () => select(job.id)}, 'Open'))));
+  $('job-rows').replaceChildren(...rows);
+  $('jobs-empty').hidden = list.jobs.length > 0;
+  $('jobs-empty').textContent = 'No jobs yet: upload photos above.';
+  return list.jobs.some((job) => !FINAL.has(job.state));
+}
+
+// ---------------------------------------------------------------------------------------------
+// One job
+
+let lastEventId = 0;
+let shownFilesFor = null;
+
+function select(id) {
+  if (selectedId !== id) {
+    selectedId = id;
+    lastEventId = 0;
+    shownFilesFor = null;
+    $('log').textContent = '';
+    for (const part of ['cameras', 'rejected', 'pictures', 'files-list']) $(part).replaceChildren();
+  }
+  if (location.hash !== `#${id}`) history.replaceState(null, '', `#${id}`);
+  $('job').hidden = false;
+  refreshJob();
+  refreshJobs();
+}
+
+async function act(path, method, confirmText) {
+  if (confirmText && !window.confirm(confirmText)) return;
+  try {
+    await api(`/jobs/${selectedId}${path}`, {method});
+  } catch (e) {
+    window.alert(e.message);
+  }
+  if (method === 'DELETE') {
+    selectedId = null;
+    $('job').hidden = true;
+    history.replaceState(null, '', location.pathname);
+  } else {
+    refreshJob();
+  }
+  refreshJobs();
+}
+
+function summaryText(summary) {
+  if (!summary) return '';
+  const parts = [];
+  for (const [key, value] of Object.entries(summary)) {
+    if (typeof value === 'number') {
+      parts.push(`${key.replaceAll('_', ' ')} ${Number.isInteger(value) ? value : value.toFixed(3)}`);
+    } else if (typeof value === 'string' && key !== 'archive_sha256') {
+      parts.push(`${key.replaceAll('_', ' ')} ${value}`);
+    }
+  }
+  return parts.join(', ');
+}
+
+function renderCameras(job) {
+  const sparse = job.stages && job.stages.sparse;
+  const cameras = sparse && sparse.summary && sparse.summary.cameras;
+  if (!cameras || cameras.length === 0) return;
+  const rows = cameras.map((c) => {
+    const sd = c.stddev || {};
+    const focal = c.final_focal !== undefined ? c.final_focal : c.initial_focal;
+    return el('tr', {},
+        el('td', {}, c.camera_id),
+        el('td', {}, `${c.width} × ${c.height}`),
+        el('td', {}, c.photos),
+        el('td', {}, focal !== undefined ? focal.toFixed(2) : '',
+           sd.focal ? ` ± ${sd.focal.toFixed(2)}` : ''),
+        el('td', {}, (c.initial_focal_source || '').replaceAll('_', ' ')),
+        el('td', {}, c.warning || c.self_calibration || ''));
+  });
+  $('cameras').replaceChildren(
+      el('h3', {}, 'Cameras'),
+      el('table', {},
+         el('thead', {}, el('tr', {}, el('th', {}, 'Camera'), el('th', {}, 'Size'),
+                            el('th', {}, 'Photos'), el('th', {}, 'Focal length (px, ± 1σ)'),
+                            el('th', {}, 'Started from'), el('th', {}, 'Note'))),
+         el('tbody', {}, rows)));
+}
+
+function renderRejected(job) {
+  const items = (job.images && job.images.items) || [];
+  const rejected = items.filter((image) => image.status !== 'accepted');
+  if (rejected.length === 0) {
+    $('rejected').replaceChildren();
+    return;
+  }
+  $('rejected').replaceChildren(
+      el('h3', {}, 'Photos not used'),
+      el('ul', {}, rejected.map((image) => el('li', {}, `${image.name}: ${image.reason || image.status}`))));
+}
+
+async function renderFiles(job) {
+  if (job.state !== 'succeeded' || shownFilesFor === job.id) return;
+  shownFilesFor = job.id;
+  let listing;
+  try {
+    listing = await api(`/jobs/${job.id}/files`);
+  } catch (e) {
+    $('files-list').replaceChildren(el('p', {class: 'error'}, `Files: ${e.message}`));
+    return;
+  }
+  const pictures = listing.files.filter((f) => f.type === 'image/png');
+  const captions = {
+    'report/similarity.png': 'Which photos resemble which (brighter: more alike).',
+    'report/match_graph.png': 'Which pairs matched (green: epipolar geometry; orange: planar or rotation only).',
+  };
+  $('pictures').replaceChildren(
+      el('h3', {}, 'Pictures'),
+      el('div', {class: 'pictures'}, pictures.map((f) => el('figure', {},
+          el('a', {href: f.url, target: '_blank'}, el('img', {src: f.url, alt: f.name, loading: 'lazy'})),
+          el('figcaption', {class: 'hint'}, captions[f.name] || f.name)))));
+  $('files-list').replaceChildren(
+      el('h3', {}, 'Files'),
+      el('ul', {}, listing.files.map((f) => el('li', {},
+          el('a', {href: f.url, download: f.name.split('/').pop()}, f.name), ` (${bytes(f.bytes)})`))));
+}
+
+let logBusy = false;
+
+async function refreshLog() {
+  if (logBusy) return;
+  logBusy = true;
+  try {
+    await readEvents();
+  } finally {
+    logBusy = false;
+  }
+}
+
+async function readEvents() {
+  const path = `/jobs/${selectedId}/events?after=${lastEventId}&limit=200`;
+  const id = selectedId;
+  const response = await fetch(API + path);
+  if (!response.ok || id !== selectedId) return;
+  const text = await response.text();
+  const log = $('log');
+  for (const line of text.split('\n')) {
+    if (!line.trim()) continue;
+    let event;
+    try { event = JSON.parse(line); } catch (e) { continue; }
+    lastEventId = Math.max(lastEventId, event.id);
+    const time = new Date(event.time).toLocaleTimeString();
+    log.append(`${time}  ${event.level.padEnd(7)} ${event.message}\n`);
+  }
+  log.scrollTop = log.scrollHeight;
+}
+
+async function refreshJob() {
+  if (!selectedId) return false;
+  const id = selectedId;
+  let job;
+  try {
+    job = await api(`/jobs/${id}`);
+  } catch (e) {
+    $('job-summary').replaceChildren(el('p', {class: 'error'}, e.message));
+    $('job-actions').replaceChildren();
+    return false;
+  }
+  if (id !== selectedId) return false;
+  const facts = [
+    badge(job), ' ',
+    `${job.counts.images} photos`,
+    job.counts.registered !== undefined ? `, ${job.counts.registered} cameras recovered` : '',
+    job.counts.points !== undefined ? `, ${job.counts.points} points` : '',
+    job.elapsed_seconds ? `; ran ${duration(job.elapsed_seconds)}` : '',
+    job.eta_seconds ? `; about ${duration(job.eta_seconds)} left` : '',
+  ];
+  $('job-title').textContent = `Job ${job.id.slice(0, 8)}`;
+  const error = job.error ? el('p', {class: 'error'}, job.error.message || JSON.stringify(job.error))
+                          : '';
+  $('job-summary').replaceChildren(el('p', {}, facts), error);
+  const actions = [];
+  if (job.state === 'succeeded') {
+    actions.push(el('a', {href: job.links.result, download: `reconduit-${job.id.slice(0, 8)}.zip`},
+                    el('button', {type: 'button', class: 'primary'},
+                       `Download result.zip${job.result ? ` (${bytes(job.result.bytes)})` : ''}`)));
+  }
+  if (!FINAL.has(job.state) && !job.cancel_requested) {
+    actions.push(el('button', {type: 'button', onclick: () => act('/cancel', 'POST')}, 'Cancel'));
+  }
+  if (job.state === 'failed' || job.state === 'canceled') {
+    actions.push(el('button', {type: 'button', onclick: () => act('/restart', 'POST')}, 'Restart'));
+  }
+  if (job.state !== 'running') {
+    actions.push(el('button', {type: 'button',
+                               onclick: () => act('', 'DELETE', 'Delete this job and its files?')},
+                    'Delete'));
+  }
+  $('job-actions').replaceChildren(...actions);
+  const stages = job.stages || {};
+  $('stage-rows').replaceChildren(...STAGES.map((name) => {
+    const s = stages[name] || {};
+    return el('tr', {},
+        el('td', {}, s.title || name),
+        el('td', {}, s.status || (job.stage === name ? 'running' : '')),
+        el('td', {class: 'progress'}, el('progress', {max: 1, value: s.progress || 0}),
+           s.total ? ` ${s.done} / ${s.total}` : ''),
+        el('td', {}, duration(s.seconds)),
+        el('td', {}, s.message && !s.status ? s.message : summaryText(s.summary)));
+  }));
+  renderCameras(job);
+  renderRejected(job);
+  await renderFiles(job);
+  await refreshLog();
+  return !FINAL.has(job.state);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Start
+
+function setUp() {
+  const drop = $('drop');
+  $('files').addEventListener('change', (e) => choose(e.target.files));
+  for (const type of ['dragenter', 'dragover']) {
+    drop.addEventListener(type, (e) => { e.preventDefault(); drop.classList.add('over'); });
+  }
+  for (const type of ['dragleave', 'drop']) {
+    drop.addEventListener(type, () => drop.classList.remove('over'));
+  }
+  drop.addEventListener('drop', (e) => { e.preventDefault(); choose(e.dataTransfer.files); });
+  $('upload-form').addEventListener('submit', upload);
+  checkHealth();
+  if (location.hash.length > 1) select(location.hash.slice(1));
+
+  // Poll quickly while something runs, slowly otherwise.
+  const tick = async () => {
+    const [jobsActive, jobActive] = await Promise.all([refreshJobs(), refreshJob()]);
+    setTimeout(tick, jobsActive || jobActive ? 1500 : 8000);
+  };
+  tick();
+}
+
+setUp();
