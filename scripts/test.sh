@@ -7,8 +7,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 bash docker/install-deps.sh test
-# playwright-core for the web page's browser test, as pinned in tests/web/package-lock.json.
-npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
+# playwright-core for the web page's browser test, as pinned in tests/web/package-lock.json
+# (again only when the lock file is newer than what is installed).
+if [ ! tests/web/node_modules/.package-lock.json -nt tests/web/package-lock.json ]; then
+  npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
+fi
 cmake --preset ci >/dev/null
 cmake --build --preset ci
 ctest --preset ci -j "$(nproc)" --label-exclude long

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <string>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #ifndef RECONDUIT_CLI_BINARY
 #error "RECONDUIT_CLI_BINARY must name the reconduit executable"
@@ -48,9 +49,7 @@ void WriteStrechaCamera(const fs::path& path) {
 class CliTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    root_ =
-        fs::temp_directory_path() /
-        ("reconduit_cli_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()));
+    root_ = fs::temp_directory_path() / ("reconduit_cli_test_" + std::to_string(getpid()));
     fs::remove_all(root_);
     fs::create_directories(root_ / "images");
     fs::create_directories(root_ / "gt");

@@ -231,6 +231,8 @@ async function act(path, method, confirmText) {
     await api(`/jobs/${selectedId}${path}`, {method});
   } catch (e) {
     window.alert(e.message);
+    refreshJob();
+    return;
   }
   if (method === 'DELETE') {
     selectedId = null;
@@ -293,15 +295,26 @@ function renderRejected(job) {
 }
 
 async function renderFiles(job) {
-  if (job.state !== 'succeeded' || shownFilesFor === job.id) return;
+  if (job.state !== 'succeeded') {
+    // A restarted job will have new files: list them again when it succeeds.
+    shownFilesFor = null;
+    $('pictures').replaceChildren();
+    $('files-list').replaceChildren();
+    return;
+  }
+  if (shownFilesFor === job.id) return;
   shownFilesFor = job.id;
   let listing;
   try {
     listing = await api(`/jobs/${job.id}/files`);
   } catch (e) {
-    $('files-list').replaceChildren(el('p', {class: 'error'}, `Files: ${e.message}`));
+    if (job.id === selectedId) {
+      $('files-list').replaceChildren(el('p', {class: 'error'}, `Files: ${e.message}`));
+    }
+    shownFilesFor = null;
     return;
   }
+  if (job.id !== selectedId) return;  // Another job was opened meanwhile.
   const pictures = listing.files.filter((f) => f.type === 'image/png');
   const captions = {
     'report/similarity.png': 'Which photos resemble which (brighter: more alike).',
@@ -336,6 +349,7 @@ async function readEvents() {
   const response = await fetch(API + path);
   if (!response.ok || id !== selectedId) return;
   const text = await response.text();
+  if (id !== selectedId) return;
   const log = $('log');
   for (const line of text.split('\n')) {
     if (!line.trim()) continue;
@@ -427,8 +441,16 @@ function setUp() {
 
   // Poll quickly while something runs, slowly otherwise.
   const tick = async () => {
-    const [jobsActive, jobActive] = await Promise.all([refreshJobs(), refreshJob()]);
-    setTimeout(tick, jobsActive || jobActive ? 1500 : 8000);
+    let active = true;
+    try {
+      const [jobsActive, jobActive] = await Promise.all([refreshJobs(), refreshJob()]);
+      active = jobsActive || jobActive;
+    } catch (e) {
+      // A lost connection (a server restart): try again at the slow pace.
+      active = false;
+    } finally {
+      setTimeout(tick, active ? 1500 : 8000);
+    }
   };
   tick();
 }

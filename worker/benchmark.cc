@@ -95,7 +95,9 @@ void PrintModel(const Reconstruction& model,
             << " px\n";
   for (const auto& [id, camera] : model.cameras) {
     std::cout << "  camera " << id << "            f " << std::setprecision(2) << camera.focal;
-    if (focal_stddev.contains(id)) std::cout << " +- " << focal_stddev.at(id);
+    if (focal_stddev.contains(id) && focal_stddev.at(id) > 0.0) {
+      std::cout << " +- " << focal_stddev.at(id);
+    }
     std::cout << " px, k1 " << std::setprecision(4) << camera.k1 << ", k2 " << camera.k2 << "\n";
   }
   if (ground_truth) {

@@ -82,6 +82,15 @@ bool BundleAdjustmentOptions::Check(std::string* error) const {
     return Fail(error, kName, "max_images_sparse_schur", "must be >= max_images_dense_schur",
                 max_images_sparse_schur);
   }
+  if (estimate_intrinsics_stddev && loss != BundleAdjustmentLoss::kTrivial) {
+    return Fail(error, kName, "estimate_intrinsics_stddev",
+                "needs the trivial loss (a robust loss reweighs cost and Jacobian)",
+                BundleAdjustmentLossName(loss));
+  }
+  if (max_observations_for_stddev < 0) {
+    return Fail(error, kName, "max_observations_for_stddev", "must be >= 0",
+                max_observations_for_stddev);
+  }
   if (scale_fixing_translation_index < -1 || scale_fixing_translation_index > 2) {
     return Fail(error, kName, "scale_fixing_translation_index", "must be -1 (auto), 0, 1 or 2",
                 scale_fixing_translation_index);

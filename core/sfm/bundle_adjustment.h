@@ -136,8 +136,13 @@ struct BundleAdjustmentOptions {
   // estimate is returned. First order, so read it as a lower bound where the focal is
   // weakly determined: in a synthetic Monte Carlo (12 photos, 200 points, focal known to
   // ~1 %) the focal's scatter was 1.16x the prediction at 0.05 px noise and 1.44x at
-  // 0.5 px; the principal point's matched. Costs about a second on fountain-P11.
+  // 0.5 px; the principal point's matched. Needs the trivial loss (Check()). Skipped when
+  // cancellation was requested.
   bool estimate_intrinsics_stddev = false;
+  // The sparse QR of the whole Jacobian grows faster than the problem: about a second for
+  // fountain-P11's 56,000 observations here. Above this many observations no estimate is
+  // made (the summary says so by an empty intrinsics_stddev), >= 0.
+  int max_observations_for_stddev = 400000;
 
   // False, with a message naming the field, when an option is out of range.
   bool Check(std::string* error) const;

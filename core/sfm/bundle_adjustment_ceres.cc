@@ -478,8 +478,13 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   summary.final_rms_px = RmsReprojectionError(rec, used);
   summary.success = true;
   summary.message = ceres_summary.message;
-  if (options.estimate_intrinsics_stddev) {
-    EstimateIntrinsicsStddev(solver_options.num_threads, intrinsics, &problem, &summary);
+  if (options.estimate_intrinsics_stddev && !cancel.IsCancelled()) {
+    if (summary.num_observations <= options.max_observations_for_stddev) {
+      EstimateIntrinsicsStddev(solver_options.num_threads, intrinsics, &problem, &summary);
+    } else {
+      LOG_INFO << "BA: " << summary.num_observations << " observations, more than "
+               << options.max_observations_for_stddev << ": intrinsics precision not estimated";
+    }
   }
   summary.time_seconds = timer.ElapsedSeconds();
   LOG_DEBUG << summary.BriefReport();

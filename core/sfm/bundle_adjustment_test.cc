@@ -233,6 +233,12 @@ TEST(BundleAdjustmentOptions, CheckRejectsBadOptionsWithMessage) {
       {[](auto& o) { o.gradient_tolerance = -1.0; }, "gradient_tolerance"},
       {[](auto& o) { o.parameter_tolerance = NAN; }, "parameter_tolerance"},
       {[](auto& o) { o.max_solver_time_seconds = 0.0; }, "max_solver_time_seconds"},
+      {[](auto& o) {
+         o.estimate_intrinsics_stddev = true;
+         o.loss = BundleAdjustmentLoss::kHuber;
+       },
+       "estimate_intrinsics_stddev"},
+      {[](auto& o) { o.max_observations_for_stddev = -1; }, "max_observations_for_stddev"},
       {[](auto& o) { o.max_images_dense_schur = 0; }, "max_images_dense_schur"},
       {[](auto& o) { o.max_images_sparse_schur = 10; }, "max_images_sparse_schur"},
       {[](auto& o) { o.scale_fixing_translation_index = 3; }, "scale_fixing_translation_index"},
@@ -524,11 +530,25 @@ TEST(BundleAdjust, IntrinsicsStddevMatchesMonteCarloScatter) {
 
   // Held entries have no spread; without a fixed gauge J^T J is singular: no estimate.
   Reconstruction rec = truth;
+  for (auto& [id, image] : rec.images) {
+    for (Eigen::Vector2d& keypoint : image.keypoints) {
+      keypoint += Eigen::Vector2d(normal(rng), normal(rng));
+    }
+  }
   options.refine_principal_point = false;
   BundleAdjustmentSummary summary = BundleAdjust(options, CancelToken(), &rec);
   ASSERT_EQ(summary.intrinsics_stddev.size(), 1u);
+  EXPECT_GT(summary.intrinsics_stddev.at(0).focal, 0.0);
   EXPECT_EQ(summary.intrinsics_stddev.at(0).cx, 0.0);
   EXPECT_EQ(summary.intrinsics_stddev.at(0).cy, 0.0);
+  // Too large a problem: no estimate.
+  options.max_observations_for_stddev = summary.num_observations - 1;
+  EXPECT_TRUE(BundleAdjust(options, CancelToken(), &rec).intrinsics_stddev.empty());
+  options.max_observations_for_stddev = BundleAdjustmentOptions().max_observations_for_stddev;
+  // A robust loss would reweigh the covariance: refused.
+  options.loss = BundleAdjustmentLoss::kCauchy;
+  EXPECT_THROW(BundleAdjust(options, CancelToken(), &rec), CheckError);
+  options.loss = BundleAdjustmentLoss::kTrivial;
   options.constant_pose_image_ids.clear();
   options.scale_fixing_image_id = kInvalidId;
   summary = BundleAdjust(options, CancelToken(), &rec);
