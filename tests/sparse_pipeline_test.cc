@@ -17,6 +17,8 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <string>
+#include <unistd.h>
 
 namespace reconduit {
 namespace {
@@ -42,7 +44,8 @@ std::vector<Rigid3d> Cameras(int n) {
 }
 
 TEST(SparsePipeline, RecoversRenderedCamerasWithoutExif) {
-  const fs::path root = fs::temp_directory_path() / "reconduit_sparse_pipeline_test";
+  const fs::path root =
+      fs::temp_directory_path() / ("reconduit_sparse_pipeline_test_" + std::to_string(getpid()));
   fs::remove_all(root);
   fs::create_directories(root / "images");
   const TexturedScene scene = MakeBoxRoomScene(3);

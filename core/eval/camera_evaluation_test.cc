@@ -4,6 +4,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <unistd.h>
 
 namespace reconduit {
 namespace {
@@ -94,7 +96,8 @@ TEST(EvaluateCameras, CountsMissingPhotos) {
 }
 
 TEST(ReadGroundTruth, StrechaAndMiddleburyAgreeOnConventions) {
-  const fs::path dir = fs::temp_directory_path() / "reconduit_gt_test";
+  const fs::path dir =
+      fs::temp_directory_path() / ("reconduit_gt_test_" + std::to_string(getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir / "strecha");
   // One camera at C = (1, 2, 3), camera-to-world rotation = identity, in both formats.

@@ -4,6 +4,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <unistd.h>
 
 namespace reconduit {
 namespace {
@@ -20,7 +22,8 @@ TEST(FeatureFile, RoundTripAndTruncation) {
   features.descriptors = cv::Mat(5, 128, CV_8U);
   cv::RNG(3).fill(features.descriptors, cv::RNG::UNIFORM, 0, 256);
 
-  const fs::path path = fs::temp_directory_path() / "reconduit_features_test.feat";
+  const fs::path path =
+      fs::temp_directory_path() / ("reconduit_features_test_" + std::to_string(getpid()) + ".feat");
   ASSERT_TRUE(WriteFeatures(path, features).ok());
   auto read = ReadFeatures(path);
   ASSERT_TRUE(read.ok()) << read.status();
@@ -44,7 +47,8 @@ TEST(FeatureFile, EmptySetRoundTrips) {
   features.image_width = 10;
   features.image_height = 10;
   features.descriptors = cv::Mat(0, 128, CV_8U);
-  const fs::path path = fs::temp_directory_path() / "reconduit_features_empty.feat";
+  const fs::path path = fs::temp_directory_path() /
+                        ("reconduit_features_empty_" + std::to_string(getpid()) + ".feat");
   ASSERT_TRUE(WriteFeatures(path, features).ok());
   auto read = ReadFeatures(path);
   ASSERT_TRUE(read.ok());

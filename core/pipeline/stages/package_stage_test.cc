@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <string>
+#include <unistd.h>
 
 namespace reconduit {
 namespace {
@@ -13,7 +15,8 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(PackageStage, WritesReportManifestAndArchive) {
-  const fs::path root = fs::temp_directory_path() / "reconduit_package_stage_test";
+  const fs::path root =
+      fs::temp_directory_path() / ("reconduit_package_stage_test_" + std::to_string(getpid()));
   fs::remove_all(root);
   Workspace workspace;
   workspace.images = {{"a.jpg", "a.jpg"}, {"b.jpg", "b.jpg"}};
