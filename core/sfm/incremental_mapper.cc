@@ -79,17 +79,17 @@ class Mapper {
         stddevs.push_back(final_stddev_);
       }
     }
-    std::vector<std::size_t> order(models.size());
-    std::iota(order.begin(), order.end(), 0);
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return models[a].images.size() > models[b].images.size();
-    });
-    std::vector<Reconstruction> sorted;
-    for (std::size_t i : order) sorted.push_back(std::move(models[i]));
-    models = std::move(sorted);
+    const auto larger = [](const Reconstruction& a, const Reconstruction& b) {
+      return a.images.size() > b.images.size();
+    };
+    // The first of the largest models is the one the stable sort puts in front.
+    if (summary_ != nullptr && !models.empty()) {
+      const auto largest = std::min_element(models.begin(), models.end(), larger);
+      summary_->intrinsics_stddev = stddevs[largest - models.begin()];
+    }
+    std::stable_sort(models.begin(), models.end(), larger);
     ResolveSharedPhotos(&models);
     if (summary_ != nullptr) {
-      if (!order.empty()) summary_->intrinsics_stddev = stddevs[order.front()];
       summary_->num_models = static_cast<int>(models.size());
       summary_->num_images = static_cast<int>(input_.images.size());
       summary_->num_registered = 0;
