@@ -3,7 +3,7 @@
 // JobStore directly, standing in for a worker.
 #include "core/io/file_util.h"
 #include "server/http/test_client.h"
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 #include "tests/server_process.h"
 
 #include <gtest/gtest.h>

@@ -5,8 +5,8 @@
 // during a job (exit 0 quickly, job back in the queue, finished by the next worker), and the
 // configuration file.
 #include "core/io/file_util.h"
-#include "server/storage/data_layout.h"
-#include "server/storage/job_store.h"
+#include "store/data_layout.h"
+#include "store/job_store.h"
 #include "worker/worker_test_util.h"
 
 #include <gmock/gmock.h>

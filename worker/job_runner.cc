@@ -534,7 +534,7 @@ JobRunReport JobRunner::Run(const Job& job) {
                FormatMiB(outcome.peak_memory_bytes);
         if (outcome.success && !outcome.summary.empty()) text += ": " + outcome.summary.dump();
         if (!outcome.success) {
-          level = outcome.status == "cancelled" ? LogLevel::kInfo : LogLevel::kError;
+          level = outcome.status == "canceled" ? LogLevel::kInfo : LogLevel::kError;
           text += ": " + outcome.message;
         }
       }
@@ -588,10 +588,10 @@ JobRunReport JobRunner::Run(const Job& job) {
         return finish_with(JobRunOutcome::kSucceeded, "", "",
                            [&] { return store_.FinishSucceeded(job.id, worker, output); });
       }
-      case PipelineOutcomeStatus::kCancelled:
+      case PipelineOutcomeStatus::kCanceled:
       case PipelineOutcomeStatus::kFailed: {
         if (lease_lost) return finish(JobRunOutcome::kLeaseLost, outcome.failed_stage, "");
-        const bool cancelled = outcome.status == PipelineOutcomeStatus::kCancelled;
+        const bool canceled = outcome.status == PipelineOutcomeStatus::kCanceled;
         if (cancel_requested) {
           // A client's cancel wins over a stop: it is what they asked for.
           LOG_INFO << "job " << job.id << " canceled in stage " << outcome.failed_stage;
@@ -605,7 +605,7 @@ JobRunReport JobRunner::Run(const Job& job) {
           return finish_with(JobRunOutcome::kReleased, outcome.failed_stage, outcome.message,
                              [&] { return store_.ReleaseJob(job.id, worker); });
         }
-        if (cancelled) {
+        if (canceled) {
           return fail(outcome.failed_stage,
                       "stage " + outcome.failed_stage +
                           " stopped without a cancel request: " + outcome.message);

@@ -32,8 +32,8 @@
 
 #include "core/util/cancel.h"
 #include "core/util/status.h"
-#include "server/storage/data_layout.h"
-#include "server/storage/job_store.h"
+#include "store/data_layout.h"
+#include "store/job_store.h"
 #include "worker/pipeline_driver.h"
 #include "worker/progress_sink.h"
 
@@ -51,7 +51,7 @@
 namespace reconduit {
 
 struct JobRunnerOptions {
-  // The data folder shared with the server (server/storage/data_layout.h).
+  // The data folder shared with the server (store/data_layout.h).
   std::filesystem::path data_dir = "data";
   // This worker's id as given to ClaimNextJob; must not be empty.
   std::string worker_id;

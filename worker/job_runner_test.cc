@@ -1,8 +1,8 @@
 #include "worker/job_runner.h"
 
 #include "core/io/file_util.h"
-#include "server/storage/data_layout.h"
-#include "server/storage/job_store.h"
+#include "store/data_layout.h"
+#include "store/job_store.h"
 #include "worker/worker_test_util.h"
 
 #include <gmock/gmock.h>

@@ -1,7 +1,7 @@
 // reconduit-worker: claims queued jobs from the shared job store and runs the reconstruction
 // pipeline on them, one at a time, until stopped. See worker/README.md.
 #include "core/util/logging.h"
-#include "server/storage/data_layout.h"
+#include "store/data_layout.h"
 #include "worker/job_runner.h"
 
 #include <boost/program_options/errors.hpp>

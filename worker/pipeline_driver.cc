@@ -127,8 +127,8 @@ PipelineOutcome RunJobPipeline(const PipelineJob& job,
       case StageStatus::kSuccess:
         outcome.status = PipelineOutcomeStatus::kSuccess;
         break;
-      case StageStatus::kCancelled:
-        outcome.status = PipelineOutcomeStatus::kCancelled;
+      case StageStatus::kCanceled:
+        outcome.status = PipelineOutcomeStatus::kCanceled;
         break;
       case StageStatus::kFailed:
       case StageStatus::kDegenerate:

@@ -8,7 +8,7 @@
 #ifndef RECONDUIT_WORKER_PIPELINE_DRIVER_H_
 #define RECONDUIT_WORKER_PIPELINE_DRIVER_H_
 
-#include "core/pipeline/options.h"
+#include "core/options/pipeline_options.h"
 #include "core/util/cancel.h"
 #include "core/util/status.h"
 
@@ -63,7 +63,7 @@ struct StagePlan {
 // How a stage ended (core StageRecord in plain values).
 struct StageOutcome {
   std::string name;
-  // "success", "cancelled", "failed" or "degenerate" (StageStatusName).
+  // "success", "canceled", "failed" or "degenerate" (StageStatusName).
   std::string status;
   bool success = false;
   bool resumable = true;
@@ -77,7 +77,7 @@ struct StageOutcome {
   nlohmann::json summary = nlohmann::json::object();
 };
 
-enum class PipelineOutcomeStatus { kSuccess, kCancelled, kFailed };
+enum class PipelineOutcomeStatus { kSuccess, kCanceled, kFailed };
 
 struct PipelineOutcome {
   PipelineOutcomeStatus status = PipelineOutcomeStatus::kFailed;

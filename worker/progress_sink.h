@@ -25,7 +25,7 @@
 
 #include "core/util/logging.h"
 #include "core/util/status.h"
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 
 #include <nlohmann/json.hpp>
 

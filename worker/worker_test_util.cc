@@ -44,7 +44,7 @@ class ToyStage : public Stage {
         context.progress.Restart(0, "waiting for a cancel request");
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
         while (std::chrono::steady_clock::now() < deadline) {
-          context.cancel.ThrowIfCancelled();
+          context.cancel.ThrowIfCanceled();
           std::this_thread::sleep_for(std::chrono::milliseconds(10));
         }
         return StageResult::Failed("no cancel arrived within 30 s");

@@ -57,9 +57,9 @@ AbsolutePoseReport EstimateAbsolutePose(const Camera& camera,
       LORANSAC<P3PEstimator, PnPNonMinimalEstimator, MEstimatorSupportMeasurer>(ransac_options)
           .Estimate(normalized, points3D, cancel);
   report.num_trials = ransac_report.num_trials;
-  if (ransac_report.cancelled) {
-    report.cancelled = true;
-    report.message = "cancelled";
+  if (ransac_report.canceled) {
+    report.canceled = true;
+    report.message = "canceled";
     return report;
   }
   if (!ransac_report.success) {

@@ -33,7 +33,7 @@ struct AbsolutePoseOptions {
 
 struct AbsolutePoseReport {
   bool success = false;
-  bool cancelled = false;
+  bool canceled = false;
   std::string message = "not run";
   Rigid3d cam_from_world;
   std::vector<char> inlier_mask;  // One entry per correspondence.

@@ -96,7 +96,7 @@ TEST(EstimateAbsolutePose, Cancellation) {
   const auto report =
       EstimateAbsolutePose(scene.camera, scene.points2D, scene.points3D, {}, &token);
   EXPECT_FALSE(report.success);
-  EXPECT_TRUE(report.cancelled);
+  EXPECT_TRUE(report.canceled);
 }
 
 }  // namespace

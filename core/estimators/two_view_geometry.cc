@@ -145,9 +145,9 @@ TwoViewGeometryReport EstimateTwoViewGeometry(const std::vector<Eigen::Vector2d>
   // Fundamental matrix.
   const auto f_report = FundamentalRANSAC(options.ransac).Estimate(points1, points2, cancel);
   report.num_trials_F = f_report.num_trials;
-  if (f_report.cancelled) {
-    report.cancelled = true;
-    report.message = "cancelled";
+  if (f_report.canceled) {
+    report.canceled = true;
+    report.message = "canceled";
     return report;
   }
   const bool f_ok = f_report.success && f_report.support.num_inliers >=
@@ -163,9 +163,9 @@ TwoViewGeometryReport EstimateTwoViewGeometry(const std::vector<Eigen::Vector2d>
   h_options.max_error = options.homography_max_error;
   const auto h_report = HomographyRANSAC(h_options).Estimate(points1, points2, cancel);
   report.num_trials_H = h_report.num_trials;
-  if (h_report.cancelled) {
-    report.cancelled = true;
-    report.message = "cancelled";
+  if (h_report.canceled) {
+    report.canceled = true;
+    report.message = "canceled";
     return report;
   }
   const bool h_ok = h_report.success && h_report.support.num_inliers >=

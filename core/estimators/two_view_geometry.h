@@ -77,7 +77,7 @@ struct TwoViewGeometryOptions {
 struct TwoViewGeometryReport {
   // True when a usable model (F or H) was found; type then says which one to trust.
   bool success = false;
-  bool cancelled = false;
+  bool canceled = false;
   // Why the pair failed; empty on success.
   std::string message = "not run";
   TwoViewModelType type = TwoViewModelType::kUndefined;

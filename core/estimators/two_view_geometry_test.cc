@@ -192,13 +192,13 @@ TEST(EstimateTwoViewGeometry, UnrelatedMatchesAreDegenerate) {
   EXPECT_NE(report.message.find("too few inliers"), std::string::npos) << report.message;
 }
 
-TEST(EstimateTwoViewGeometry, CancelledTokenStopsEstimation) {
+TEST(EstimateTwoViewGeometry, CanceledTokenStopsEstimation) {
   const auto scene = MakeTwoViewScene(SceneKind::kGeneral, 100, 100, 0.5, 11);
   CancelToken token;
   token.RequestCancel();
   const auto report = EstimateTwoViewGeometry(scene.points1, scene.points2, {}, &token);
   EXPECT_FALSE(report.success);
-  EXPECT_TRUE(report.cancelled);
+  EXPECT_TRUE(report.canceled);
 }
 
 TEST(EstimateTwoViewGeometry, MismatchedSizesThrow) {

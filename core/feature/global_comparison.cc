@@ -40,7 +40,7 @@ Eigen::MatrixXf ProbeSimilarity(const std::vector<const FeatureSet*>& features,
   ParallelFor(
       0, pairs.size(),
       [&](std::size_t k) {
-        cancel.ThrowIfCancelled();
+        cancel.ThrowIfCanceled();
         const auto [i, j] = pairs[k];
         const auto matches = MatchDescriptors(probes[i], probes[j], MatchingOptions());
         const Eigen::Index denominator = std::min(probes[i].rows(), probes[j].rows());
@@ -80,7 +80,7 @@ Eigen::MatrixXf VladSimilarity(const std::vector<const FeatureSet*>& features,
                cv::KMEANS_PP_CENTERS, centers);
   }
   progress.Advance();
-  cancel.ThrowIfCancelled();
+  cancel.ThrowIfCanceled();
 
   const int dim = clusters * 128;
   Eigen::MatrixXf vlad = Eigen::MatrixXf::Zero(n, dim);
@@ -92,7 +92,7 @@ Eigen::MatrixXf VladSimilarity(const std::vector<const FeatureSet*>& features,
   ParallelFor(
       0, n,
       [&](std::size_t i) {
-        cancel.ThrowIfCancelled();
+        cancel.ThrowIfCanceled();
         const cv::Mat& desc = features[i]->descriptors;
         Eigen::MatrixXf v = Eigen::MatrixXf::Zero(clusters, 128);
         for (int r = 0; r < desc.rows; ++r) {

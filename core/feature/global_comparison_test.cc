@@ -120,7 +120,7 @@ TEST(CompareImages, Cancellation) {
   cancel.RequestCancel();
   Progress progress;
   EXPECT_THROW(CompareImages(Pointers(photos), GlobalComparisonOptions(), progress, cancel),
-               CancelledError);
+               CanceledError);
 }
 
 TEST(RenderSimilarityMatrix, OneCellPerPair) {

@@ -54,7 +54,7 @@ IngestReport IngestImages(const std::vector<std::filesystem::path>& files,
   ParallelFor(
       0, files.size(),
       [&](std::size_t i) {
-        cancel.ThrowIfCancelled();
+        cancel.ThrowIfCanceled();
         report.images[i] = InspectImage(files[i], options.reader);
         progress.Advance();
       },

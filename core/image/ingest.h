@@ -48,7 +48,7 @@ Result<std::vector<std::filesystem::path>> ListImageFiles(const std::filesystem:
 
 // Inspects every file (InspectImage) in parallel and returns the report in input order.
 // Progress: Restart(files.size(), ...), Advance() per file, Finish(). Logs a summary line.
-// Throws CancelledError when `cancel` is requested (checked before each file), CheckError when
+// Throws CanceledError when `cancel` is requested (checked before each file), CheckError when
 // the options are invalid.
 IngestReport IngestImages(const std::vector<std::filesystem::path>& files,
                           const IngestOptions& options,

@@ -116,10 +116,10 @@ TEST_F(IngestTest, EmptyInputGivesEmptyReport) {
   EXPECT_EQ(report.num_rejected, 0u);
 }
 
-TEST_F(IngestTest, CancelledBeforeStartThrows) {
+TEST_F(IngestTest, CanceledBeforeStartThrows) {
   cancel_.RequestCancel();
   EXPECT_THROW(IngestImages(Files({"a_good.png", "d_good.jpg"}), options_, progress_, cancel_),
-               CancelledError);
+               CanceledError);
   EXPECT_EQ(progress_.done(), 0u);
 }
 
@@ -137,7 +137,7 @@ TEST_F(IngestTest, CancellationStopsRemainingFiles) {
   options_.num_threads = 1;
   std::vector<std::filesystem::path> files;
   for (int i = 0; i < 20; ++i) files.push_back(dir_ / "d_good.jpg");
-  EXPECT_THROW(IngestImages(files, options_, progress, cancel), CancelledError);
+  EXPECT_THROW(IngestImages(files, options_, progress, cancel), CanceledError);
   EXPECT_EQ(progress.done(), 2u);
   EXPECT_GT(calls.load(), 0);
 }

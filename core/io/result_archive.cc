@@ -43,7 +43,7 @@ Result<ResultArchiveSummary> WriteResultArchive(const std::filesystem::path& fol
 
   nlohmann::json manifest = {{"files", nlohmann::json::array()}};
   for (const fs::path& relative : paths) {
-    cancel.ThrowIfCancelled();
+    cancel.ThrowIfCanceled();
     ManifestEntry file;
     file.name = relative.generic_string();
     file.bytes = static_cast<std::int64_t>(fs::file_size(folder / relative));
@@ -90,10 +90,10 @@ Result<ResultArchiveSummary> WriteResultArchive(const std::filesystem::path& fol
     zip_set_file_compression(archive, index, IsCompressed(source) ? ZIP_CM_STORE : ZIP_CM_DEFLATE,
                              0);
   }
-  if (cancel.IsCancelled()) {
+  if (cancel.IsCanceled()) {
     zip_discard(archive);
     fs::remove(temp, ec);
-    throw CancelledError();
+    throw CanceledError();
   }
   if (zip_close(archive) != 0) {
     const std::string message = ZipError(archive);

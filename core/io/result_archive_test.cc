@@ -83,11 +83,11 @@ TEST_F(ResultArchiveTest, MissingFolderIsNotFound) {
   EXPECT_EQ(summary.status().code(), StatusCode::kNotFound);
 }
 
-TEST_F(ResultArchiveTest, CancelledLeavesNoArchive) {
+TEST_F(ResultArchiveTest, CanceledLeavesNoArchive) {
   CancelToken cancel;
   cancel.RequestCancel();
   EXPECT_THROW((void)WriteResultArchive(root_ / "out", root_ / "result.zip", cancel),
-               CancelledError);
+               CanceledError);
   EXPECT_FALSE(fs::exists(root_ / "result.zip"));
   EXPECT_FALSE(fs::exists(root_ / "result.zip.tmp"));
 }

@@ -41,7 +41,7 @@ template <typename M_t, typename Support>
 struct RANSACReport {
   bool success = false;
   // True when the CancelToken stopped the loop (success is then false).
-  bool cancelled = false;
+  bool canceled = false;
   // Why the estimation failed; empty on success.
   std::string message = "not run";
   // Samples drawn.
@@ -112,10 +112,10 @@ RANSACReport<typename Estimator::M_t, typename SupportMeasurer::Support> RunRANS
   std::size_t trial = 0;
   for (; trial < max_num_trials; ++trial) {
     if (trial >= dyn_max_num_trials && trial >= options.min_num_trials) break;
-    if (cancel != nullptr && cancel->IsCancelled()) {
-      report.cancelled = true;
+    if (cancel != nullptr && cancel->IsCanceled()) {
+      report.canceled = true;
       report.num_trials = trial;
-      report.message = "cancelled";
+      report.message = "canceled";
       return report;
     }
     sampler.Sample(&sample_idxs);
@@ -189,7 +189,7 @@ class RANSAC {
   // @param cancel  Optional; polled once per trial. The caller keeps ownership.
   // @return        A report; success is false (with a message) when there are fewer than
   //                kMinNumSamples pairs, when no model has kMinNumSamples inliers, or when
-  //                cancelled. Never throws for degenerate data.
+  //                canceled. Never throws for degenerate data.
   Report Estimate(const std::vector<X_t>& X,
                   const std::vector<Y_t>& Y,
                   const CancelToken* cancel = nullptr) const {

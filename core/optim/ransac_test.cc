@@ -49,7 +49,7 @@ LineData MakeLineData(int num_inliers, int num_outliers, double noise, unsigned 
 TEST(RANSACReport, DefaultsReadAsFailure) {
   const RANSAC<LineEstimator>::Report report;
   EXPECT_FALSE(report.success);
-  EXPECT_FALSE(report.cancelled);
+  EXPECT_FALSE(report.canceled);
   EXPECT_EQ(report.message, "not run");
   EXPECT_EQ(report.num_trials, 0u);
   EXPECT_EQ(report.support.num_inliers, 0u);
@@ -128,15 +128,15 @@ TEST(RANSAC, InvalidOptionsThrowInConstructor) {
   EXPECT_THROW(RANSAC<LineEstimator>{options}, CheckError);
 }
 
-TEST(RANSAC, CancelledTokenStopsBeforeTheFirstTrial) {
+TEST(RANSAC, CanceledTokenStopsBeforeTheFirstTrial) {
   const LineData data = MakeLineData(50, 50, 0.0, 3);
   CancelToken token;
   token.RequestCancel();
   const auto report = RANSAC<LineEstimator>(RANSACOptions()).Estimate(data.x, data.y, &token);
   EXPECT_FALSE(report.success);
-  EXPECT_TRUE(report.cancelled);
+  EXPECT_TRUE(report.canceled);
   EXPECT_EQ(report.num_trials, 0u);
-  EXPECT_EQ(report.message, "cancelled");
+  EXPECT_EQ(report.message, "canceled");
 }
 
 TEST(RANSAC, DynamicTrialCountStopsEarlyOnCleanData) {

@@ -61,8 +61,8 @@ std::string_view StageStatusName(StageStatus status) {
   switch (status) {
     case StageStatus::kSuccess:
       return "success";
-    case StageStatus::kCancelled:
-      return "cancelled";
+    case StageStatus::kCanceled:
+      return "canceled";
     case StageStatus::kFailed:
       return "failed";
     case StageStatus::kDegenerate:
@@ -81,7 +81,7 @@ StageRecord StageRecord::FromJson(const nlohmann::json& json) {
   StageRecord record;
   record.name = json.at("name").get<std::string>();
   const std::string status = json.at("status").get<std::string>();
-  for (StageStatus s : {StageStatus::kSuccess, StageStatus::kCancelled, StageStatus::kFailed,
+  for (StageStatus s : {StageStatus::kSuccess, StageStatus::kCanceled, StageStatus::kFailed,
                         StageStatus::kDegenerate}) {
     if (StageStatusName(s) == status) record.status = s;
   }
@@ -151,8 +151,8 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
       may_resume = false;
     }
 
-    if (cancel.IsCancelled()) {
-      return finish(StageStatus::kCancelled, name, "cancelled before stage " + name);
+    if (cancel.IsCanceled()) {
+      return finish(StageStatus::kCanceled, name, "canceled before stage " + name);
     }
 
     std::error_code ec;
@@ -182,9 +182,9 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
       record.status = stage_result.status;
       record.message = std::move(stage_result.message);
       record.summary = std::move(stage_result.summary);
-    } catch (const CancelledError&) {
-      record.status = StageStatus::kCancelled;
-      record.message = "cancelled during stage " + name;
+    } catch (const CanceledError&) {
+      record.status = StageStatus::kCanceled;
+      record.message = "canceled during stage " + name;
     } catch (const std::exception& e) {
       record.status = StageStatus::kFailed;
       record.message = e.what();

@@ -37,7 +37,7 @@ class ToyStage : public Stage {
         throw std::runtime_error("disk on fire");
       case Behaviour::kCancelInside:
         context.cancel.RequestCancel();
-        context.cancel.ThrowIfCancelled();
+        context.cancel.ThrowIfCanceled();
         return StageResult::Success();
       case Behaviour::kDegenerate:
         return StageResult::Degenerate("all photos show a flat wall");
@@ -118,17 +118,17 @@ TEST_F(RunnerTest, DegenerateStopsWithItsMessage) {
 TEST_F(RunnerTest, CancellationInsideAStage) {
   const PipelineResult result =
       RunPipeline(Stages(ToyStage::Behaviour::kCancelInside), workspace_, options_, CancelToken());
-  EXPECT_EQ(result.status, StageStatus::kCancelled);
+  EXPECT_EQ(result.status, StageStatus::kCanceled);
   EXPECT_EQ(result.failed_stage, "b");
   EXPECT_EQ(runs_[2], 0);
 }
 
-TEST_F(RunnerTest, CancelledBeforeStartRunsNothing) {
+TEST_F(RunnerTest, CanceledBeforeStartRunsNothing) {
   CancelToken cancel;
   cancel.RequestCancel();
   const PipelineResult result =
       RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_, options_, cancel);
-  EXPECT_EQ(result.status, StageStatus::kCancelled);
+  EXPECT_EQ(result.status, StageStatus::kCanceled);
   EXPECT_EQ(runs_[0], 0);
 }
 

@@ -8,7 +8,7 @@
 #ifndef RECONDUIT_CORE_PIPELINE_STAGE_H_
 #define RECONDUIT_CORE_PIPELINE_STAGE_H_
 
-#include "core/pipeline/options.h"
+#include "core/options/pipeline_options.h"
 #include "core/util/cancel.h"
 #include "core/util/progress.h"
 
@@ -41,7 +41,7 @@ struct Workspace {
   std::filesystem::path StageDir(std::string_view stage) const { return work_dir / stage; }
 };
 
-enum class StageStatus { kSuccess, kCancelled, kFailed, kDegenerate };
+enum class StageStatus { kSuccess, kCanceled, kFailed, kDegenerate };
 std::string_view StageStatusName(StageStatus status);
 
 // What a stage returns. Defaults read as "did not run" (a failure), never as a success.
@@ -107,7 +107,7 @@ class Stage {
   // The default, every option that affects results, is always safe; a stage narrows it so
   // that changing an option reruns only the stages it concerns (and those after them).
   virtual std::vector<std::string> OptionsUsed() const;
-  // Does the work. May throw CancelledError (cancelled) or any exception (failed).
+  // Does the work. May throw CanceledError (canceled) or any exception (failed).
   virtual StageResult Run(StageContext& context) const = 0;
 };
 

@@ -165,7 +165,7 @@ struct BundleAdjustmentSummary {
   bool success = false;
   std::string message = "bundle adjustment was not run";
   // Why the solver stopped: "CONVERGENCE", "NO_CONVERGENCE" (iteration or time limit),
-  // "FAILURE", "USER_FAILURE" (cancelled), or "NOT_RUN".
+  // "FAILURE", "USER_FAILURE" (canceled), or "NOT_RUN".
   std::string termination = "NOT_RUN";
   // The linear solver that was used, e.g. "DENSE_SCHUR".
   std::string linear_solver;
@@ -215,7 +215,7 @@ struct BundleAdjustmentSummary {
 //
 // Cancellation: `cancel` is polled before the solve and at every solver iteration (a Ceres
 // IterationCallback). When it fires, the solver aborts, nothing is written back (the
-// reconstruction is exactly as it was before the call, hence consistent), and CancelledError
+// reconstruction is exactly as it was before the call, hence consistent), and CanceledError
 // is thrown.
 //
 // @param options   Must pass Check(); throws CheckError otherwise (a precondition).

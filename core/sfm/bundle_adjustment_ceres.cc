@@ -3,7 +3,7 @@
 //
 // The solver works on copies of the parameters (poses, intrinsics, points) held here, and
 // writes them back into the Reconstruction only after a usable solve. That keeps the
-// reconstruction untouched when the solve fails or is cancelled, and keeps constant
+// reconstruction untouched when the solve fails or is canceled, and keeps constant
 // parameters bit-identical.
 #include "core/sfm/bundle_adjustment.h"
 #include "core/sfm/reprojection_error.h"
@@ -74,19 +74,19 @@ class CancelAndLogCallback : public ceres::IterationCallback {
               << ", change " << summary.cost_change << ", |gradient| " << summary.gradient_max_norm
               << ", |step| " << summary.step_norm << ", radius " << summary.trust_region_radius
               << (summary.step_is_successful ? "" : " (rejected)");
-    if (cancel_.IsCancelled()) {
-      cancelled_ = true;
+    if (cancel_.IsCanceled()) {
+      canceled_ = true;
       return ceres::SOLVER_ABORT;
     }
     return ceres::SOLVER_CONTINUE;
   }
 
-  bool cancelled() const { return cancelled_; }
+  bool canceled() const { return canceled_; }
 
  private:
   const CancelToken& cancel_;
   std::string_view what_;
-  bool cancelled_ = false;
+  bool canceled_ = false;
 };
 
 // One pose in the problem: a copy of cam_from_world in Ceres's parameter layout.
@@ -254,7 +254,7 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   THROW_CHECK_NOTNULL(reconstruction);
   std::string error;
   THROW_CHECK(options.Check(&error)) << error;
-  cancel.ThrowIfCancelled();
+  cancel.ThrowIfCanceled();
   const Timer timer;
   Reconstruction& rec = *reconstruction;
   BundleAdjustmentSummary summary;
@@ -440,10 +440,10 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   ceres::Solver::Summary ceres_summary;
   QuietCeresUnlessDebugging();
   ceres::Solve(solver_options, &problem, &ceres_summary);
-  // Cancelled: Ceres did not update the copies and nothing is written back.
-  if (callback.cancelled()) {
-    LOG_DEBUG << "BA cancelled after " << ceres_summary.iterations.size() << " iterations";
-    throw CancelledError();
+  // Canceled: Ceres did not update the copies and nothing is written back.
+  if (callback.canceled()) {
+    LOG_DEBUG << "BA canceled after " << ceres_summary.iterations.size() << " iterations";
+    throw CanceledError();
   }
 
   LOG_DEBUG << ceres_summary.FullReport();
@@ -478,7 +478,7 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   summary.final_rms_px = RmsReprojectionError(rec, used);
   summary.success = true;
   summary.message = ceres_summary.message;
-  if (options.estimate_intrinsics_stddev && !cancel.IsCancelled()) {
+  if (options.estimate_intrinsics_stddev && !cancel.IsCanceled()) {
     if (summary.num_observations <= options.max_observations_for_stddev) {
       EstimateIntrinsicsStddev(solver_options.num_threads, intrinsics, &problem, &summary);
     } else {

@@ -733,18 +733,18 @@ TEST(BundleAdjust, SkipsPointsWithOneObservation) {
   EXPECT_LT(summary.final_rms_px, 1e-6);
 }
 
-// (e) Cancellation before the solve and during it: CancelledError, reconstruction untouched.
-TEST(BundleAdjust, CancelledBeforeSolveThrows) {
+// (e) Cancellation before the solve and during it: CanceledError, reconstruction untouched.
+TEST(BundleAdjust, CanceledBeforeSolveThrows) {
   const TestScene scene = MakeScene(SmallSceneOptions());
   Reconstruction rec = Perturb(scene.truth, 2.0, 0.02, 0.02, 1.05, 0.0, /*seed=*/18);
   const Reconstruction before = rec;
   CancelToken cancel;
   cancel.RequestCancel();
-  EXPECT_THROW(BundleAdjust(GaugeFixedOptions(scene.truth), cancel, &rec), CancelledError);
+  EXPECT_THROW(BundleAdjust(GaugeFixedOptions(scene.truth), cancel, &rec), CanceledError);
   EXPECT_TRUE(SameParameters(rec, before));
 }
 
-TEST(BundleAdjust, CancelledDuringSolveThrowsAndLeavesReconstructionUnchanged) {
+TEST(BundleAdjust, CanceledDuringSolveThrowsAndLeavesReconstructionUnchanged) {
   const TestScene scene = MakeScene(SmallSceneOptions());
   Reconstruction rec = Perturb(scene.truth, 3.0, 0.03, 0.03, 1.05, 0.03, /*seed=*/19);
   const Reconstruction before = rec;
@@ -753,7 +753,7 @@ TEST(BundleAdjust, CancelledDuringSolveThrowsAndLeavesReconstructionUnchanged) {
   CancelToken cancel;
   std::atomic<int> calls{0};
   cancel.SetProbe([&calls] { return ++calls >= 4; }, std::chrono::milliseconds(0));
-  EXPECT_THROW(BundleAdjust(GaugeFixedOptions(scene.truth), cancel, &rec), CancelledError);
+  EXPECT_THROW(BundleAdjust(GaugeFixedOptions(scene.truth), cancel, &rec), CanceledError);
   EXPECT_EQ(calls.load(), 4);  // Stopped right when asked, after 2 solver iterations.
   EXPECT_TRUE(SameParameters(rec, before));
 

@@ -59,7 +59,7 @@ class Mapper {
     std::vector<std::map<int, IntrinsicsStddev>> stddevs;  // Of each model's cameras.
     progress_.Restart(input_.images.size(), "registering photos");
     while (true) {
-      cancel_.ThrowIfCancelled();
+      cancel_.ThrowIfCanceled();
       // The track <-> point maps describe the model being built; a new model starts empty
       // (points of earlier models must neither be looked up nor block re-triangulation).
       track_point_.clear();
@@ -192,7 +192,7 @@ class Mapper {
                      [&](const MapperPair* a, const MapperPair* b) { return score(a) > score(b); });
     const int trials = std::min<int>(candidates.size(), options_.max_initial_pair_trials);
     for (int k = 0; k < trials; ++k) {
-      cancel_.ThrowIfCancelled();
+      cancel_.ThrowIfCanceled();
       const MapperPair& pair = *candidates[k];
       tried_initial_.insert({pair.image1, pair.image2});
       std::string why;
@@ -312,7 +312,7 @@ class Mapper {
   void Grow(Reconstruction* model) {
     std::set<int> failed;  // Photos that failed since the model last changed.
     while (model->images.size() < max_images_) {
-      cancel_.ThrowIfCancelled();
+      cancel_.ThrowIfCanceled();
       std::vector<std::pair<int, int>> candidates;  // (visible points, image)
       for (const auto& [id, image] : input_.images) {
         // Photos of earlier models may join this one too: a model that stopped growing at a
@@ -778,7 +778,7 @@ std::map<int, Camera> SearchFocal(const MapperInput& input,
     return text.str() + " px";
   };
   auto run = [&](const std::map<int, Camera>& start) {
-    cancel.ThrowIfCancelled();
+    cancel.ThrowIfCanceled();
     Progress quiet;
     Mapper mapper(input, trial_options, quiet, cancel, nullptr);
     mapper.SetInitialCameras(start);

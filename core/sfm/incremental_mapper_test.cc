@@ -375,7 +375,7 @@ TEST(ReconstructIncrementally, Cancellation) {
   cancel.RequestCancel();
   Progress progress;
   EXPECT_THROW(ReconstructIncrementally(input, IncrementalMapperOptions(), progress, cancel),
-               CancelledError);
+               CanceledError);
 }
 
 }  // namespace

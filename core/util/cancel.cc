@@ -11,10 +11,10 @@ std::int64_t NowNs() {
 
 CancelToken::CancelToken() : state_(std::make_shared<State>()) {}
 
-void CancelToken::RequestCancel() const { state_->cancelled.store(true); }
+void CancelToken::RequestCancel() const { state_->canceled.store(true); }
 
-bool CancelToken::IsCancelled() const {
-  if (state_->cancelled.load(std::memory_order_relaxed)) return true;
+bool CancelToken::IsCanceled() const {
+  if (state_->canceled.load(std::memory_order_relaxed)) return true;
   const std::int64_t now = NowNs();
   if (now < state_->next_probe_ns.load(std::memory_order_relaxed)) return false;
   // Only one thread probes at a time; the others keep going.
@@ -22,12 +22,12 @@ bool CancelToken::IsCancelled() const {
   if (!lock.owns_lock() || !state_->probe) return false;
   state_->next_probe_ns.store(
       now + std::chrono::duration_cast<std::chrono::nanoseconds>(state_->probe_interval).count());
-  if (state_->probe()) state_->cancelled.store(true);
-  return state_->cancelled.load();
+  if (state_->probe()) state_->canceled.store(true);
+  return state_->canceled.load();
 }
 
-void CancelToken::ThrowIfCancelled() const {
-  if (IsCancelled()) throw CancelledError();
+void CancelToken::ThrowIfCanceled() const {
+  if (IsCanceled()) throw CanceledError();
 }
 
 void CancelToken::SetProbe(std::function<bool()> probe,

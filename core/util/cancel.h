@@ -20,11 +20,11 @@
 
 namespace reconduit {
 
-// Thrown by CancelToken::ThrowIfCancelled(); stages let it propagate to the runner, which
-// turns it into a "cancelled" stage result.
-class CancelledError : public std::runtime_error {
+// Thrown by CancelToken::ThrowIfCanceled(); stages let it propagate to the runner, which
+// turns it into a "canceled" stage result.
+class CanceledError : public std::runtime_error {
  public:
-  CancelledError() : std::runtime_error("cancelled") {}
+  CanceledError() : std::runtime_error("canceled") {}
 };
 
 class CancelToken {
@@ -35,10 +35,10 @@ class CancelToken {
   void RequestCancel() const;
 
   // True once RequestCancel() was called or the probe answered true.
-  bool IsCancelled() const;
+  bool IsCanceled() const;
 
-  // Throws CancelledError when IsCancelled().
-  void ThrowIfCancelled() const;
+  // Throws CanceledError when IsCanceled().
+  void ThrowIfCanceled() const;
 
   // Installs a function asked "should we stop?" at most once per `min_interval`.
   // Replaces any earlier probe. The probe must be thread-safe.
@@ -47,7 +47,7 @@ class CancelToken {
 
  private:
   struct State {
-    std::atomic<bool> cancelled{false};
+    std::atomic<bool> canceled{false};
     std::mutex probe_mutex;
     std::function<bool()> probe;
     std::chrono::milliseconds probe_interval{500};

@@ -11,18 +11,18 @@ namespace {
 TEST(CancelToken, CopiesShareTheFlag) {
   CancelToken token;
   const CancelToken copy = token;
-  EXPECT_FALSE(copy.IsCancelled());
-  EXPECT_NO_THROW(copy.ThrowIfCancelled());
+  EXPECT_FALSE(copy.IsCanceled());
+  EXPECT_NO_THROW(copy.ThrowIfCanceled());
   token.RequestCancel();
-  EXPECT_TRUE(copy.IsCancelled());
-  EXPECT_THROW(copy.ThrowIfCancelled(), CancelledError);
+  EXPECT_TRUE(copy.IsCanceled());
+  EXPECT_THROW(copy.ThrowIfCanceled(), CanceledError);
 }
 
 TEST(CancelToken, ProbeIsThrottled) {
   CancelToken token;
   std::atomic<int> calls{0};
   token.SetProbe([&] { return ++calls >= 3; }, std::chrono::hours(1));
-  for (int i = 0; i < 1000; ++i) EXPECT_FALSE(token.IsCancelled());
+  for (int i = 0; i < 1000; ++i) EXPECT_FALSE(token.IsCanceled());
   EXPECT_EQ(calls.load(), 1) << "the probe runs once per interval";
 }
 
@@ -30,10 +30,10 @@ TEST(CancelToken, ProbeCanCancel) {
   CancelToken token;
   std::atomic<int> calls{0};
   token.SetProbe([&] { return ++calls >= 3; }, std::chrono::milliseconds(0));
-  EXPECT_FALSE(token.IsCancelled());
-  EXPECT_FALSE(token.IsCancelled());
-  EXPECT_TRUE(token.IsCancelled());
-  EXPECT_TRUE(token.IsCancelled()) << "cancellation sticks";
+  EXPECT_FALSE(token.IsCanceled());
+  EXPECT_FALSE(token.IsCanceled());
+  EXPECT_TRUE(token.IsCanceled());
+  EXPECT_TRUE(token.IsCanceled()) << "cancellation sticks";
   EXPECT_EQ(calls.load(), 3);
 }
 
@@ -41,7 +41,7 @@ TEST(CancelToken, CancelFromAnotherThread) {
   CancelToken token;
   std::thread t([token] { token.RequestCancel(); });
   t.join();
-  EXPECT_TRUE(token.IsCancelled());
+  EXPECT_TRUE(token.IsCanceled());
 }
 
 }  // namespace

@@ -14,8 +14,8 @@ std::string_view StatusCodeName(StatusCode code) {
       return "NOT_FOUND";
     case StatusCode::kDegenerate:
       return "DEGENERATE";
-    case StatusCode::kCancelled:
-      return "CANCELLED";
+    case StatusCode::kCanceled:
+      return "CANCELED";
     case StatusCode::kFailedPrecondition:
       return "FAILED_PRECONDITION";
     case StatusCode::kAlreadyExists:

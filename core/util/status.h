@@ -1,7 +1,7 @@
 // Status and Result<T>: how core/ reports an expected failure as a value.
 //
 // Exceptions (CheckError) are for broken preconditions; a Status is for outcomes a caller is
-// expected to handle: a photo that does not decode, a degenerate pair, a cancelled stage.
+// expected to handle: a photo that does not decode, a degenerate pair, a canceled stage.
 // Following Ceres's Summary, a default-constructed Status is not OK: a result nobody filled
 // in reads as a failure ("not run"), never as a silent success.
 #ifndef RECONDUIT_CORE_UTIL_STATUS_H_
@@ -23,7 +23,7 @@ enum class StatusCode {
   kInvalidArgument,     // Bad input (a file that is not an image, an option out of range).
   kNotFound,            // A file or record that does not exist.
   kDegenerate,          // Input is valid but geometry cannot be recovered from it.
-  kCancelled,           // A cancel request was honoured.
+  kCanceled,           // A cancel request was honoured.
   kFailedPrecondition,  // Wrong state for this request (cancel a finished job).
   kAlreadyExists,       // Something with this identity exists already.
   kResourceExhausted,   // A limit was reached (queue full, disk full, too many uploads).
@@ -43,8 +43,8 @@ class [[nodiscard]] Status {
   }
   static Status NotFound(std::string m) { return Status(StatusCode::kNotFound, std::move(m)); }
   static Status Degenerate(std::string m) { return Status(StatusCode::kDegenerate, std::move(m)); }
-  static Status Cancelled(std::string m = "cancelled") {
-    return Status(StatusCode::kCancelled, std::move(m));
+  static Status Canceled(std::string m = "canceled") {
+    return Status(StatusCode::kCanceled, std::move(m));
   }
   static Status FailedPrecondition(std::string m) {
     return Status(StatusCode::kFailedPrecondition, std::move(m));

@@ -16,7 +16,7 @@ TEST(Status, DefaultIsNotRunAndNotOk) {
 TEST(Status, ToStringNamesCodeAndMessage) {
   EXPECT_EQ(Status::Ok().ToString(), "OK");
   EXPECT_EQ(Status::InvalidArgument("not an image").ToString(), "INVALID_ARGUMENT: not an image");
-  EXPECT_EQ(Status::Cancelled().code(), StatusCode::kCancelled);
+  EXPECT_EQ(Status::Canceled().code(), StatusCode::kCanceled);
 }
 
 TEST(Result, HoldsValueOrError) {

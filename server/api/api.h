@@ -16,8 +16,8 @@
 
 #include "server/http/http_metrics.h"
 #include "server/http/router.h"
-#include "server/storage/data_layout.h"
-#include "server/storage/job_store.h"
+#include "store/data_layout.h"
+#include "store/job_store.h"
 
 #include <atomic>
 #include <cstdint>

@@ -17,7 +17,7 @@
 #define RECONDUIT_SERVER_API_EVENTS_STREAM_H_
 
 #include "server/api/api.h"
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 
 #include <chrono>
 #include <cstdint>

@@ -5,7 +5,7 @@
 #ifndef RECONDUIT_SERVER_API_JOB_JSON_H_
 #define RECONDUIT_SERVER_API_JOB_JSON_H_
 
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 
 #include <nlohmann/json.hpp>
 

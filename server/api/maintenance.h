@@ -14,8 +14,8 @@
 #ifndef RECONDUIT_SERVER_API_MAINTENANCE_H_
 #define RECONDUIT_SERVER_API_MAINTENANCE_H_
 
-#include "server/storage/data_layout.h"
-#include "server/storage/job_store.h"
+#include "store/data_layout.h"
+#include "store/job_store.h"
 
 #include <chrono>
 #include <condition_variable>

@@ -1,6 +1,6 @@
 // GET /api/v1/options (the pipeline options table and the server's upload limits) and
 // GET /metrics (Prometheus text exposition format 0.0.4).
-#include "core/pipeline/options.h"
+#include "core/options/pipeline_options.h"
 #include "core/util/logging.h"
 #include "server/api/api.h"
 

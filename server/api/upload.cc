@@ -1,7 +1,7 @@
 #include "server/api/upload.h"
 
 #include "core/io/file_util.h"
-#include "core/pipeline/options.h"
+#include "core/options/pipeline_options.h"
 #include "core/util/logging.h"
 #include "server/api/job_json.h"
 #include "server/api/photo_check.h"
@@ -359,7 +359,7 @@ class MultipartUploadSink : public BodySink {
   // Stops the parser with `refusal` as the answer.
   Status Stop(Response refusal) {
     refusal_ = std::move(refusal);
-    return Status::Cancelled("upload refused");
+    return Status::Canceled("upload refused");
   }
 
   Status OnPartBegin(const MultipartPart& part) {
@@ -455,7 +455,7 @@ class ZipUploadSink : public BodySink {
       std::optional<Response> refusal;
       const Status status = (*archive)->Extract(entry, [&](std::string_view data) {
         refusal = session_->AppendPhoto(data);
-        return refusal ? Status::Cancelled("refused") : Status::Ok();
+        return refusal ? Status::Canceled("refused") : Status::Ok();
       });
       if (refusal) return std::move(*refusal);
       if (!status.ok()) return ZipRefusal(status);

@@ -91,8 +91,8 @@ TEST_F(ZipReaderTest, ListsAndExtractsPhotosSkippingMetadata) {
 
   // The sink's error stops the extraction and is returned.
   const Status stopped =
-      (*archive)->Extract(photos[1], [](std::string_view) { return Status::Cancelled("enough"); });
-  EXPECT_EQ(stopped.code(), StatusCode::kCancelled);
+      (*archive)->Extract(photos[1], [](std::string_view) { return Status::Canceled("enough"); });
+  EXPECT_EQ(stopped.code(), StatusCode::kCanceled);
 }
 
 TEST_F(ZipReaderTest, RefusesUnsafeNames) {

@@ -145,7 +145,7 @@ HttpStatus HttpStatusFor(StatusCode code) {
     case StatusCode::kDegenerate:
       return HttpStatus::unprocessable_entity;
     case StatusCode::kResourceExhausted:
-    case StatusCode::kCancelled:
+    case StatusCode::kCanceled:
       return HttpStatus::service_unavailable;
     case StatusCode::kNotRun:
     case StatusCode::kInternal:

@@ -127,7 +127,7 @@ Response RetryLaterResponse(HttpStatus status, std::string_view message, int ret
 // Maps a reconduit::Status code to the HTTP status a handler should answer with:
 //   kInvalidArgument -> 400, kNotFound -> 404, kFailedPrecondition and kAlreadyExists -> 409,
 //   kDegenerate -> 422 (valid input that cannot be reconstructed), kResourceExhausted -> 503
-//   (server capacity: queue or disk full; sent with Retry-After), kCancelled -> 503,
+//   (server capacity: queue or disk full; sent with Retry-After), kCanceled -> 503,
 //   kNotRun and kInternal -> 500, kOk -> 200.
 HttpStatus HttpStatusFor(StatusCode code);
 

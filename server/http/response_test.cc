@@ -89,7 +89,7 @@ TEST(HttpStatusFor, MapsEveryStatusCode) {
   EXPECT_EQ(HttpStatusFor(StatusCode::kAlreadyExists), HttpStatus::conflict);
   EXPECT_EQ(HttpStatusFor(StatusCode::kDegenerate), HttpStatus::unprocessable_entity);
   EXPECT_EQ(HttpStatusFor(StatusCode::kResourceExhausted), HttpStatus::service_unavailable);
-  EXPECT_EQ(HttpStatusFor(StatusCode::kCancelled), HttpStatus::service_unavailable);
+  EXPECT_EQ(HttpStatusFor(StatusCode::kCanceled), HttpStatus::service_unavailable);
   EXPECT_EQ(HttpStatusFor(StatusCode::kInternal), HttpStatus::internal_server_error);
   EXPECT_EQ(HttpStatusFor(StatusCode::kNotRun), HttpStatus::internal_server_error);
 }

@@ -52,7 +52,7 @@ StageResult FeaturesStage::Run(StageContext& context) const {
     ParallelFor(
         0, accepted.size(),
         [&](std::size_t k) {
-          context.cancel.ThrowIfCancelled();
+          context.cancel.ThrowIfCanceled();
           const IngestedImage& image = *accepted[k];
           auto pixels = ReadImage(image.path, reader);
           THROW_CHECK(pixels.ok()) << image.name << ": " << pixels.status().message();

@@ -47,7 +47,7 @@ StageResult IngestStage::Run(StageContext& context) const {
   std::vector<std::filesystem::path> files;
   for (const InputImage& input : workspace.images) files.push_back(input.path);
   const IngestReport report = IngestImages(files, options, context.progress, context.cancel);
-  context.cancel.ThrowIfCancelled();
+  context.cancel.ThrowIfCanceled();
 
   nlohmann::json list = nlohmann::json::array();
   std::string refusals;

@@ -171,7 +171,7 @@ StageResult MatchingStage::Run(StageContext& context) const {
   ParallelFor(
       0, chosen->size(),
       [&](std::size_t k) {
-        context.cancel.ThrowIfCancelled();
+        context.cancel.ThrowIfCanceled();
         const ImagePair& pair = (*chosen)[k];
         VerifiedPair& out = verified[k];
         out.matches.image1 = pair.image1;
@@ -188,7 +188,7 @@ StageResult MatchingStage::Run(StageContext& context) const {
         }
         const TwoViewGeometryReport report =
             EstimateTwoViewGeometry(points1, points2, geometry, &context.cancel);
-        context.cancel.ThrowIfCancelled();
+        context.cancel.ThrowIfCanceled();
         out.type = report.type;
         out.F = report.F;
         out.H = report.H;

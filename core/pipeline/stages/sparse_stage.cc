@@ -91,7 +91,7 @@ void ColourPoints(const std::vector<IngestedImage>& images,
   ParallelFor(
       0, ids.size(),
       [&](std::size_t k) {
-        cancel.ThrowIfCancelled();
+        cancel.ThrowIfCanceled();
         const RegisteredImage& image = model->images.at(ids[k]);
         auto pixels = ReadImage(by_id.at(ids[k])->path, reader);
         if (!pixels.ok()) return;

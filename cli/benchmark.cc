@@ -1,4 +1,4 @@
-#include "worker/benchmark.h"
+#include "cli/benchmark.h"
 
 #include "core/eval/camera_evaluation.h"
 #include "core/io/colmap_text.h"
@@ -8,7 +8,7 @@
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
-#include "worker/cli_common.h"
+#include "cli/cli_common.h"
 
 #include <nlohmann/json.hpp>
 

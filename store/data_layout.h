@@ -11,8 +11,8 @@
 //
 // The server writes input/ (and fsyncs it) before it inserts the job row; the worker writes
 // work/, output/ and result.zip; deleting a job removes <data>/jobs/<id>/ whole.
-#ifndef RECONDUIT_SERVER_STORAGE_DATA_LAYOUT_H_
-#define RECONDUIT_SERVER_STORAGE_DATA_LAYOUT_H_
+#ifndef RECONDUIT_STORE_DATA_LAYOUT_H_
+#define RECONDUIT_STORE_DATA_LAYOUT_H_
 
 #include <filesystem>
 #include <string_view>
@@ -44,4 +44,4 @@ class DataLayout {
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_SERVER_STORAGE_DATA_LAYOUT_H_
+#endif  // RECONDUIT_STORE_DATA_LAYOUT_H_

@@ -1,8 +1,8 @@
 // Pieces shared by the `reconduit` commands (reconstruct, benchmark).
-#ifndef RECONDUIT_WORKER_CLI_COMMON_H_
-#define RECONDUIT_WORKER_CLI_COMMON_H_
+#ifndef RECONDUIT_CLI_CLI_COMMON_H_
+#define RECONDUIT_CLI_CLI_COMMON_H_
 
-#include "core/pipeline/options.h"
+#include "core/options/pipeline_options.h"
 #include "core/pipeline/stage.h"
 
 #include <filesystem>
@@ -21,4 +21,4 @@ std::vector<InputImage> ListInputImages(const std::filesystem::path& folder);
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_WORKER_CLI_COMMON_H_
+#endif  // RECONDUIT_CLI_CLI_COMMON_H_

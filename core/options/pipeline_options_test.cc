@@ -1,4 +1,4 @@
-#include "core/pipeline/options.h"
+#include "core/options/pipeline_options.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

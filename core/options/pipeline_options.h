@@ -8,8 +8,8 @@
 //
 // Only options that change what the pipeline does today are listed; a stage adds its options
 // here when it lands.
-#ifndef RECONDUIT_CORE_PIPELINE_OPTIONS_H_
-#define RECONDUIT_CORE_PIPELINE_OPTIONS_H_
+#ifndef RECONDUIT_CORE_OPTIONS_PIPELINE_OPTIONS_H_
+#define RECONDUIT_CORE_OPTIONS_PIPELINE_OPTIONS_H_
 
 #include "core/util/status.h"
 
@@ -81,4 +81,4 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& options);
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_CORE_PIPELINE_OPTIONS_H_
+#endif  // RECONDUIT_CORE_OPTIONS_PIPELINE_OPTIONS_H_

@@ -1,7 +1,7 @@
 // Several threads and several processes claiming from one database: every job is claimed
 // exactly once and no "database is locked" error reaches a caller.
-#include "server/storage/job_store.h"
-#include "server/storage/storage_test_util.h"
+#include "store/job_store.h"
+#include "store/store_test_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -25,8 +25,8 @@
 // Times are Unix epoch milliseconds (UTC) from the store's clock. Leases compare times written
 // by different processes, so hosts sharing a database need synchronised clocks (NTP); a lease
 // should be several times longer than the heartbeat interval plus any expected clock skew.
-#ifndef RECONDUIT_SERVER_STORAGE_JOB_STORE_H_
-#define RECONDUIT_SERVER_STORAGE_JOB_STORE_H_
+#ifndef RECONDUIT_STORE_JOB_STORE_H_
+#define RECONDUIT_STORE_JOB_STORE_H_
 
 #include "core/util/logging.h"
 #include "core/util/status.h"
@@ -421,4 +421,4 @@ Result<std::unique_ptr<JobStore>> OpenSqliteJobStore(const std::string& path,
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_SERVER_STORAGE_JOB_STORE_H_
+#endif  // RECONDUIT_STORE_JOB_STORE_H_

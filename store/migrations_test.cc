@@ -1,7 +1,7 @@
-#include "server/storage/migrations.h"
+#include "store/migrations.h"
 
-#include "server/storage/job_store.h"
-#include "server/storage/storage_test_util.h"
+#include "store/job_store.h"
+#include "store/store_test_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

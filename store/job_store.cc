@@ -1,4 +1,4 @@
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 
 #include <cstdint>
 #include <random>

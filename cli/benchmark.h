@@ -10,8 +10,8 @@
 // feature_extractor, exhaustive_matcher, mapper) on the same photos in the same run, prints
 // its times, peak memory and accuracy, and the ratios ours / COLMAP. --resume keeps the
 // work folder's finished stages (to tune a late stage, delete its folder and rerun).
-#ifndef RECONDUIT_WORKER_BENCHMARK_H_
-#define RECONDUIT_WORKER_BENCHMARK_H_
+#ifndef RECONDUIT_CLI_BENCHMARK_H_
+#define RECONDUIT_CLI_BENCHMARK_H_
 
 #include <string>
 #include <vector>
@@ -23,4 +23,4 @@ int RunBenchmark(const std::vector<std::string>& args);
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_WORKER_BENCHMARK_H_
+#endif  // RECONDUIT_CLI_BENCHMARK_H_

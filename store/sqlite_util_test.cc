@@ -1,6 +1,6 @@
-#include "server/storage/sqlite_util.h"
+#include "store/sqlite_util.h"
 
-#include "server/storage/storage_test_util.h"
+#include "store/store_test_util.h"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 
-#include "server/storage/sqlite_util.h"
-#include "server/storage/storage_test_util.h"
+#include "store/sqlite_util.h"
+#include "store/store_test_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -4,11 +4,11 @@
 // A database records the number of the last migration applied in `PRAGMA user_version` (0 for
 // a new file) and carries Reconduit's `PRAGMA application_id`, so a file that belongs to some
 // other program is refused rather than silently extended with our tables.
-#ifndef RECONDUIT_SERVER_STORAGE_MIGRATIONS_H_
-#define RECONDUIT_SERVER_STORAGE_MIGRATIONS_H_
+#ifndef RECONDUIT_STORE_MIGRATIONS_H_
+#define RECONDUIT_STORE_MIGRATIONS_H_
 
 #include "core/util/status.h"
-#include "server/storage/sqlite_util.h"
+#include "store/sqlite_util.h"
 
 #include <cstdint>
 #include <span>
@@ -27,7 +27,7 @@ struct Migration {
 };
 
 // The migrations compiled into this binary, in version order. Generated at build time by
-// server/storage/embed_migrations.cmake from schema/sql/*.sql: the program does not read the
+// store/embed_migrations.cmake from schema/sql/*.sql: the program does not read the
 // source tree at run time.
 std::span<const Migration> EmbeddedMigrations();
 
@@ -55,4 +55,4 @@ Result<int> SchemaVersion(SqliteConnection& db);
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_SERVER_STORAGE_MIGRATIONS_H_
+#endif  // RECONDUIT_STORE_MIGRATIONS_H_

@@ -1,4 +1,4 @@
-#include "server/storage/sqlite_util.h"
+#include "store/sqlite_util.h"
 
 #include <string>
 #include <utility>

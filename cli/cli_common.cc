@@ -1,4 +1,4 @@
-#include "worker/cli_common.h"
+#include "cli/cli_common.h"
 
 #include "core/io/file_util.h"
 

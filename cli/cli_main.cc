@@ -7,13 +7,13 @@
 // The output folder receives exactly the files result.zip would hold. Intermediate files go
 // to a work folder (default "<out_dir>.work"); running the same command again resumes after
 // the last finished stage. Ctrl-C cancels cleanly. Exit status: 0 success, 1 the pipeline
-// failed, 2 bad command line, 130 cancelled.
+// failed, 2 bad command line, 130 canceled.
 #include "core/io/file_util.h"
 #include "core/pipeline/default_stages.h"
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
-#include "worker/benchmark.h"
-#include "worker/cli_common.h"
+#include "cli/benchmark.h"
+#include "cli/cli_common.h"
 
 #include <algorithm>
 #include <csignal>
@@ -194,7 +194,7 @@ int Reconstruct(const std::vector<std::string>& args) {
   }
   std::cerr << "reconduit: stage " << result.failed_stage << " " << StageStatusName(result.status)
             << ": " << result.message << "\n";
-  return result.status == StageStatus::kCancelled ? 130 : 1;
+  return result.status == StageStatus::kCanceled ? 130 : 1;
 }
 
 }  // namespace

@@ -6,16 +6,16 @@
 //   different connections and WAL lets readers proceed while one writer commits.
 // - Processes: every read-modify-write runs in a BEGIN IMMEDIATE transaction, which takes the
 //   database's single write lock up front (waiting up to busy_timeout). Claiming, finishing,
-//   cancelling and sweeping are therefore serialised across all threads and processes, which is
+//   canceling and sweeping are therefore serialised across all threads and processes, which is
 //   what makes "each job is claimed exactly once" hold. Single-statement writes run in
 //   autocommit mode, which also takes the write lock before reading.
 // - A call that still meets SQLITE_BUSY (busy timeout exhausted, or one of the rare cases where
 //   SQLite does not consult the busy handler) is retried a few times from the start of its
 //   transaction, then reported as kResourceExhausted.
 #include "core/util/logging.h"
-#include "server/storage/job_store.h"
-#include "server/storage/migrations.h"
-#include "server/storage/sqlite_util.h"
+#include "store/job_store.h"
+#include "store/migrations.h"
+#include "store/sqlite_util.h"
 
 #include <algorithm>
 #include <chrono>

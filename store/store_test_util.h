@@ -1,8 +1,8 @@
-// Helpers shared by the storage tests (header-only; not part of reconduit_storage).
-#ifndef RECONDUIT_SERVER_STORAGE_STORAGE_TEST_UTIL_H_
-#define RECONDUIT_SERVER_STORAGE_STORAGE_TEST_UTIL_H_
+// Helpers shared by the storage tests (header-only; not part of reconduit_store).
+#ifndef RECONDUIT_STORE_STORAGE_TEST_UTIL_H_
+#define RECONDUIT_STORE_STORAGE_TEST_UTIL_H_
 
-#include "server/storage/job_store.h"
+#include "store/job_store.h"
 
 #include <gtest/gtest.h>
 
@@ -88,4 +88,4 @@ inline std::unique_ptr<JobStore> OpenOrDie(const std::string& path,
 }  // namespace testing_util
 }  // namespace reconduit
 
-#endif  // RECONDUIT_SERVER_STORAGE_STORAGE_TEST_UTIL_H_
+#endif  // RECONDUIT_STORE_STORAGE_TEST_UTIL_H_

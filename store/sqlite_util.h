@@ -11,8 +11,8 @@
 //
 // Thread-safety: none of these objects may be used from two threads at once. A connection (and
 // its statements) may move between threads when it is idle, which is what the store's pool does.
-#ifndef RECONDUIT_SERVER_STORAGE_SQLITE_UTIL_H_
-#define RECONDUIT_SERVER_STORAGE_SQLITE_UTIL_H_
+#ifndef RECONDUIT_STORE_SQLITE_UTIL_H_
+#define RECONDUIT_STORE_SQLITE_UTIL_H_
 
 #include "core/util/status.h"
 
@@ -167,4 +167,4 @@ class Transaction {
 
 }  // namespace reconduit
 
-#endif  // RECONDUIT_SERVER_STORAGE_SQLITE_UTIL_H_
+#endif  // RECONDUIT_STORE_SQLITE_UTIL_H_

@@ -1,4 +1,4 @@
-#include "server/storage/migrations.h"
+#include "store/migrations.h"
 
 #include <string>
 
