@@ -8,10 +8,10 @@
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
-#include "cli/cli_common.h"
 
 #include <nlohmann/json.hpp>
 
+#include "cli/cli_common.h"
 #include <algorithm>
 #include <filesystem>
 #include <fstream>

@@ -12,9 +12,9 @@
 #include "core/pipeline/default_stages.h"
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
+
 #include "cli/benchmark.h"
 #include "cli/cli_common.h"
-
 #include <algorithm>
 #include <csignal>
 #include <cstdio>

@@ -1,11 +1,10 @@
 // Several threads and several processes claiming from one database: every job is claimed
 // exactly once and no "database is locked" error reaches a caller.
-#include "store/job_store.h"
-#include "store/store_test_util.h"
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "store/job_store.h"
+#include "store/store_test_util.h"
 #include <fstream>
 #include <map>
 #include <signal.h>

@@ -1,11 +1,10 @@
 #include "store/job_store.h"
 
-#include "store/sqlite_util.h"
-#include "store/store_test_util.h"
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "store/sqlite_util.h"
+#include "store/store_test_util.h"
 #include <set>
 
 namespace reconduit {

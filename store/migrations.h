@@ -8,8 +8,8 @@
 #define RECONDUIT_STORE_MIGRATIONS_H_
 
 #include "core/util/status.h"
-#include "store/sqlite_util.h"
 
+#include "store/sqlite_util.h"
 #include <cstdint>
 #include <span>
 #include <string_view>

@@ -1,11 +1,10 @@
 #include "store/migrations.h"
 
-#include "store/job_store.h"
-#include "store/store_test_util.h"
-
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "store/job_store.h"
+#include "store/store_test_util.h"
 #include <fstream>
 #include <vector>
 

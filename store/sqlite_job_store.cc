@@ -13,10 +13,10 @@
 //   SQLite does not consult the busy handler) is retried a few times from the start of its
 //   transaction, then reported as kResourceExhausted.
 #include "core/util/logging.h"
+
 #include "store/job_store.h"
 #include "store/migrations.h"
 #include "store/sqlite_util.h"
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>

@@ -1,8 +1,8 @@
 #include "store/sqlite_util.h"
 
-#include "store/store_test_util.h"
-
 #include <gtest/gtest.h>
+
+#include "store/store_test_util.h"
 
 namespace reconduit {
 namespace {

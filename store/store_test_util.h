@@ -2,10 +2,9 @@
 #ifndef RECONDUIT_STORE_STORAGE_TEST_UTIL_H_
 #define RECONDUIT_STORE_STORAGE_TEST_UTIL_H_
 
-#include "store/job_store.h"
-
 #include <gtest/gtest.h>
 
+#include "store/job_store.h"
 #include <atomic>
 #include <cstdint>
 #include <cstdio>

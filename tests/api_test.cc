@@ -3,7 +3,6 @@
 // JobStore directly, standing in for a worker.
 #include "core/io/file_util.h"
 #include "server/http/test_client.h"
-#include "store/job_store.h"
 #include "tests/server_process.h"
 
 #include <gtest/gtest.h>
@@ -12,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <zip.h>
 
+#include "store/job_store.h"
 #include <atomic>
 #include <chrono>
 #include <filesystem>

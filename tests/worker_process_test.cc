@@ -5,13 +5,13 @@
 // during a job (exit 0 quickly, job back in the queue, finished by the next worker), and the
 // configuration file.
 #include "core/io/file_util.h"
-#include "store/data_layout.h"
-#include "store/job_store.h"
 #include "worker/worker_test_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "store/data_layout.h"
+#include "store/job_store.h"
 #include <algorithm>
 #include <chrono>
 #include <csignal>

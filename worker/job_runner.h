@@ -32,13 +32,13 @@
 
 #include "core/util/cancel.h"
 #include "core/util/status.h"
-#include "store/data_layout.h"
-#include "store/job_store.h"
 #include "worker/pipeline_driver.h"
 #include "worker/progress_sink.h"
 
 #include <nlohmann/json.hpp>
 
+#include "store/data_layout.h"
+#include "store/job_store.h"
 #include <atomic>
 #include <chrono>
 #include <cstdint>

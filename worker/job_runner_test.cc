@@ -1,13 +1,13 @@
 #include "worker/job_runner.h"
 
 #include "core/io/file_util.h"
-#include "store/data_layout.h"
-#include "store/job_store.h"
 #include "worker/worker_test_util.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "store/data_layout.h"
+#include "store/job_store.h"
 #include <chrono>
 #include <filesystem>
 #include <fstream>

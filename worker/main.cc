@@ -1,13 +1,13 @@
 // reconduit-worker: claims queued jobs from the shared job store and runs the reconstruction
 // pipeline on them, one at a time, until stopped. See worker/README.md.
 #include "core/util/logging.h"
-#include "store/data_layout.h"
 #include "worker/job_runner.h"
 
 #include <boost/program_options/errors.hpp>
 #include <boost/program_options/options_description.hpp>
 #include <boost/program_options/parsers.hpp>
 
+#include "store/data_layout.h"
 #include <atomic>
 #include <cerrno>
 #include <chrono>

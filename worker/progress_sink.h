@@ -25,10 +25,10 @@
 
 #include "core/util/logging.h"
 #include "core/util/status.h"
-#include "store/job_store.h"
 
 #include <nlohmann/json.hpp>
 
+#include "store/job_store.h"
 #include <atomic>
 #include <chrono>
 #include <cstddef>

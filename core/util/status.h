@@ -23,7 +23,7 @@ enum class StatusCode {
   kInvalidArgument,     // Bad input (a file that is not an image, an option out of range).
   kNotFound,            // A file or record that does not exist.
   kDegenerate,          // Input is valid but geometry cannot be recovered from it.
-  kCanceled,           // A cancel request was honoured.
+  kCanceled,            // A cancel request was honoured.
   kFailedPrecondition,  // Wrong state for this request (cancel a finished job).
   kAlreadyExists,       // Something with this identity exists already.
   kResourceExhausted,   // A limit was reached (queue full, disk full, too many uploads).

@@ -16,9 +16,9 @@
 
 #include "server/http/http_metrics.h"
 #include "server/http/router.h"
+
 #include "store/data_layout.h"
 #include "store/job_store.h"
-
 #include <atomic>
 #include <cstdint>
 #include <filesystem>

@@ -17,8 +17,8 @@
 #define RECONDUIT_SERVER_API_EVENTS_STREAM_H_
 
 #include "server/api/api.h"
-#include "store/job_store.h"
 
+#include "store/job_store.h"
 #include <chrono>
 #include <cstdint>
 #include <string>

@@ -5,10 +5,9 @@
 #ifndef RECONDUIT_SERVER_API_JOB_JSON_H_
 #define RECONDUIT_SERVER_API_JOB_JSON_H_
 
-#include "store/job_store.h"
-
 #include <nlohmann/json.hpp>
 
+#include "store/job_store.h"
 #include <cstdint>
 #include <optional>
 #include <string>

@@ -16,7 +16,6 @@
 
 #include "store/data_layout.h"
 #include "store/job_store.h"
-
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
