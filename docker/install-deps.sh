@@ -16,14 +16,14 @@ mode="${1:-build}"
 runtime_packages=(
   ca-certificates
   libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406 libopencv-features2d406
-  libopencv-calib3d406 libopencv-flann406
+  libopencv-calib3d406
   libceres3 libexiv2-27 libzip4 libsqlite3-0 libopenblas0-pthread
   libboost-filesystem1.74.0 libboost-program-options1.74.0 libssl3
 )
 
 # Toolchain, headers and test tools.
 build_packages=(
-  build-essential cmake ninja-build pkg-config git clang-format
+  build-essential cmake ninja-build pkg-config git clang-format ccache python3
   libeigen3-dev libopencv-dev libceres-dev libsuitesparse-dev libopenblas-dev
   libboost1.74-dev libboost-filesystem1.74-dev libboost-program-options1.74-dev
   nlohmann-json3-dev libsqlite3-dev libzip-dev libtinygltf-dev libexiv2-dev libssl-dev
