@@ -1,0 +1,105 @@
+// Depth and normal maps by PatchMatch stereo over several views, on the CPU.
+//
+// Method (Bleyer et al. 2011, "PatchMatch Stereo"; multi-view as in Galliani et al. 2015,
+// "Gipuma", and Schönberger et al. 2016, "Pixelwise view selection", COLMAP): every pixel of
+// the reference photo holds a plane hypothesis, a depth along its ray and a normal. A plane
+// induces a homography into each source photo; the hypothesis's cost in a source is 1 - NCC
+// of the reference window and the source window it maps to; its multi-view cost is the mean of
+// the best `top_k` source costs (occlusions and non-overlap only hurt some sources). Every
+// pixel starts from a random plane (or from a sparse point that projects into it), then each
+// iteration (1) tries its neighbours' planes (propagation) and (2) small random changes of its
+// own (refinement), keeping whatever lowers its cost.
+//
+// Parallel propagation: pixels are coloured like a checkerboard; all red pixels update at once
+// reading only black ones, then the reverse (Gipuma). The result does not depend on the number
+// of threads: each pixel's random numbers come from a hash of (seed, pixel, iteration).
+//
+// What stays empty (depth 0): pixels whose window has almost no texture (its grey levels'
+// standard deviation below `min_texture_stddev`: the sky, a plain wall, a black background),
+// and pixels whose best cost stays above `max_cost` (nothing matched: occlusions, surfaces seen
+// by no source). A depth map is never filled by guessing.
+//
+// Images are single-channel float, undistorted (pinhole cameras) and at the working resolution;
+// see core/mvs/mvs_view.h for how photos are prepared.
+#ifndef RECONDUIT_CORE_MVS_PATCH_MATCH_H_
+#define RECONDUIT_CORE_MVS_PATCH_MATCH_H_
+
+#include "core/geometry/camera.h"
+#include "core/geometry/rigid3.h"
+#include "core/util/cancel.h"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace reconduit {
+
+// A photo prepared for dense matching.
+struct MvsView {
+  // CV_32FC1 grey levels (any scale; NCC does not care), camera.height x camera.width.
+  cv::Mat gray;
+  // Pinhole camera at this image's resolution; k1 and k2 must be 0 (undistorted image).
+  Camera camera;
+  Rigid3d cam_from_world;
+};
+
+struct PatchMatchOptions {
+  // The matching window is (2 radius + 1)^2 pixels, sampled every `window_step` pixels in x and
+  // y: radius 4, step 2 compares 25 samples over a 9 x 9 window. [1, 15], [1, radius]
+  int window_radius = 4;
+  int window_step = 2;
+  // Propagation + refinement sweeps (each a red and a black half-sweep). [1, 50]
+  int num_iterations = 5;
+  // The multi-view cost averages the best `top_k` sources' costs. [1, 16]
+  int top_k = 2;
+  // Pixels whose window's grey-level standard deviation is below this are left empty, in units
+  // of the image's grey levels (images scaled to [0, 255]: about 1 grey level). >= 0
+  double min_texture_stddev = 1.0;
+  // Pixels whose final cost is above this (1 - NCC) are left empty. (0, 2]
+  double max_cost = 0.6;
+  // Normals more than this many degrees away from facing the camera are not tried. (0, 90)
+  double max_normal_angle_deg = 80.0;
+  // Threads (core/util/parallel.h); the result does not depend on it.
+  int num_threads = 0;
+  std::uint64_t seed = 0;
+
+  // False, with a message naming the field, for values out of range.
+  bool Check(std::string* error) const;
+};
+
+// A reference photo's depth in the camera frame (z, not distance along the ray).
+struct DepthMap {
+  cv::Mat depth;   // CV_32FC1, 0 where empty.
+  cv::Mat normal;  // CV_32FC3, unit normals in the camera frame, facing the camera (n.z < 0).
+  cv::Mat cost;    // CV_32FC1, the multi-view cost (1 - NCC, [0, 2]); 2 where empty.
+};
+
+// A known depth to start from: a sparse point that projects to `pixel` of the reference.
+struct DepthSeed {
+  Eigen::Vector2d pixel;
+  double depth = 0.0;
+};
+
+struct PatchMatchInput {
+  const MvsView* reference = nullptr;
+  std::vector<const MvsView*> sources;
+  // Depths are searched in [min_depth, max_depth] (uniform in inverse depth). 0 < min < max.
+  double min_depth = 0.0;
+  double max_depth = 0.0;
+  // Sparse points seen by the reference; each starts the pixel it falls in (optional).
+  std::vector<DepthSeed> seeds;
+};
+
+// Runs PatchMatch for `input.reference`. Throws CheckError for invalid options or input
+// (no source, mismatched image sizes, distorted cameras, bad depth range) and CanceledError
+// when `cancel` fires (checked between half-sweeps). Thread-safe for distinct outputs.
+DepthMap ComputeDepthMap(const PatchMatchInput& input,
+                         const PatchMatchOptions& options,
+                         const CancelToken& cancel = CancelToken());
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_MVS_PATCH_MATCH_H_
