@@ -22,16 +22,22 @@ std::string TextOf(const po::option& option) {
 
 // --help and --config, which every program has, followed by the program's options.
 po::options_description AllOptions(const ProgramSettings& program) {
-  po::options_description all("Options");
+  std::string others;
+  for (const std::string& section : kConfigSections) {
+    if (section != program.section) others += (others.empty() ? "[" : ", [") + section + "]";
+  }
+  const std::string config_help =
+      "Read settings from this file (env RECONDUIT_CONFIG): INI-style 'name = value' lines with "
+      "the option names without '--'; '#' starts a comment. Names at the top are read by every "
+      "program reading the file, names under [" +
+      program.section + "] only by this one; " + others +
+      " is skipped. An unknown name, a name set twice or a bad value is an error (exit "
+      "status 2).";
+  po::options_description all("Options", kHelpWidth, kHelpWidth / 2);
   // clang-format off
   all.add_options()
       ("help,h", "Print this help and exit.")
-      ("config", po::value<std::string>(),
-       ("Read settings from this file (env RECONDUIT_CONFIG): INI-style 'name = value' lines\n"
-        "with the option names without '--', '#' starts a comment. Names at the top are read\n"
-        "by every program reading the file; names under [" + program.section + "] only by this\n"
-        "one; other sections ([server], [worker]) are skipped. An unknown name, a name set\n"
-        "twice or a bad value is an error (exit status 2).").c_str());
+      ("config", po::value<std::string>()->value_name("FILE"), config_help.c_str());
   // clang-format on
   all.add(program.options);
   return all;

@@ -41,6 +41,9 @@ namespace po = boost::program_options;
 // The sections a configuration file may have; a program skips those that are not its own.
 inline const std::vector<std::string> kConfigSections = {"server", "worker"};
 
+// The width of --help's option table.
+inline constexpr unsigned kHelpWidth = 100;
+
 // What one program accepts.
 struct ProgramSettings {
   // "reconduit-server": the first word of every message.
@@ -52,7 +55,8 @@ struct ProgramSettings {
   std::string epilogue;
   // Every setting (without --help and --config, which ParseSettings adds): flags of the same
   // name, environment variables per `environment`, names in the configuration file.
-  po::options_description options;
+  // kHelpWidth columns wide in --help.
+  po::options_description options{kHelpWidth, kHelpWidth / 2};
   // Option name -> environment variable ("lease" -> "RECONDUIT_LEASE_SECONDS"). Options not
   // listed have none. RECONDUIT_CONFIG always names the configuration file.
   std::map<std::string, std::string> environment;
