@@ -1,6 +1,7 @@
 #include "cli/benchmark.h"
 
 #include "core/eval/camera_evaluation.h"
+#include "core/image/ingest.h"
 #include "core/io/colmap_text.h"
 #include "core/io/file_util.h"
 #include "core/io/reconstruction_json.h"
@@ -18,6 +19,7 @@
 #include <iomanip>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -171,134 +173,144 @@ std::optional<ColmapResult> RunColmap(const fs::path& images,
   return result;
 }
 
-}  // namespace
-
-int RunBenchmark(const std::vector<std::string>& args) {
-  std::vector<std::string> positional;
-  std::string gt_path, until = "sparse", options_file, work;
+// `benchmark`'s arguments, checked.
+struct BenchmarkArgs {
+  fs::path images;
+  std::string gt_path;
   bool colmap = false;
   bool resume = false;
-  int threads = -1;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    auto value = [&](std::string* out) {
-      if (i + 1 >= args.size()) return false;
-      *out = args[++i];
-      return true;
-    };
-    std::string text;
-    if (arg == "--gt") {
-      if (!value(&gt_path)) return (std::cerr << "reconduit: --gt needs a path\n", 2);
-    } else if (arg == "--until") {
-      if (!value(&until)) return (std::cerr << "reconduit: --until needs a stage\n", 2);
-    } else if (arg == "--options") {
-      if (!value(&options_file)) return (std::cerr << "reconduit: --options needs a file\n", 2);
-    } else if (arg == "--work") {
-      if (!value(&work)) return (std::cerr << "reconduit: --work needs a folder\n", 2);
-    } else if (arg == "--threads") {
-      if (!value(&text)) return (std::cerr << "reconduit: --threads needs a number\n", 2);
-      threads = std::atoi(text.c_str());
-    } else if (arg == "--colmap") {
-      colmap = true;
-    } else if (arg == "--resume") {
-      resume = true;
-    } else if (!arg.empty() && arg[0] == '-') {
-      std::cerr << "reconduit: unknown option '" << arg << "'\n";
-      return 2;
-    } else {
-      positional.push_back(arg);
-    }
-  }
-  if (positional.size() != 1) {
-    std::cerr << "usage: reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE]"
-                 " [--options FILE] [--work DIR] [--threads N] [--resume]\n";
-    return 2;
-  }
-  const fs::path images = positional[0];
-  std::error_code ec;
-  if (!fs::is_directory(images, ec)) {
-    std::cerr << "reconduit: '" << images.string() << "' is not a folder\n";
-    return 2;
-  }
-  std::optional<std::vector<GroundTruthCamera>> ground_truth;
-  if (!gt_path.empty()) {
-    auto gt = ReadGroundTruth(gt_path);
-    if (!gt.ok()) {
-      std::cerr << "reconduit: ground truth: " << gt.status() << "\n";
-      return 2;
-    }
-    ground_truth = std::move(*gt);
-  }
-  const Result<PipelineOptions> options = LoadPipelineOptions(options_file, threads);
-  if (!options.ok()) return (std::cerr << "reconduit: " << options.status() << "\n", 2);
-  auto stages = CreatePipelineStages(until);
-  if (!stages.ok()) return (std::cerr << "reconduit: " << stages.status() << "\n", 2);
+  RunFlags flags;
+};
 
-  const fs::path work_dir =
-      work.empty() ? fs::temp_directory_path() / "reconduit-benchmark" : fs::path(work);
-  Workspace workspace;
-  workspace.images = ListInputImages(images);
-  if (ground_truth) {
-    // Compare only the photos given: a ground-truth file may describe a larger set (one
-    // Middlebury _par.txt for every view) of which the folder holds a subset.
-    std::set<std::string> names;
-    for (const InputImage& image : workspace.images) names.insert(image.name);
-    const std::size_t described = ground_truth->size();
-    std::erase_if(*ground_truth,
-                  [&](const GroundTruthCamera& camera) { return !names.contains(camera.name); });
-    if (ground_truth->empty()) {
-      std::cerr << "reconduit: ground truth '" << gt_path << "' describes none of the photos in '"
-                << images.string() << "'\n";
-      return 2;
-    }
-    if (ground_truth->size() < described) {
-      std::cout << "Ground truth: " << ground_truth->size() << " of its " << described
-                << " cameras are photos of this folder; comparing those\n";
-    }
+// Returns the exit status when the command should stop (bad arguments).
+std::optional<int> ParseBenchmarkArgs(const std::vector<std::string>& args, BenchmarkArgs* parsed) {
+  namespace po = boost::program_options;
+  parsed->flags.until = "sparse";
+  po::options_description options = RunOptions(&parsed->flags);
+  options.add_options()("gt", po::value(&parsed->gt_path))(
+      "colmap", po::bool_switch(&parsed->colmap))("resume", po::bool_switch(&parsed->resume));
+  std::vector<std::string> positional;
+  const std::string error = ParseCommandArguments(args, options, &positional);
+  if (!error.empty()) return UsageError(error);
+  if (positional.size() != 1) return UsageError("benchmark needs one <images_dir>");
+  parsed->images = positional[0];
+  std::error_code ec;
+  if (!fs::is_directory(parsed->images, ec)) {
+    std::cerr << "reconduit: '" << parsed->images.string() << "' is not a folder\n";
+    return 2;
   }
+  return std::nullopt;
+}
+
+// The ground truth of `gt_path` for the photos given: a ground-truth file may describe a larger
+// set (one Middlebury _par.txt for every view) of which the folder holds a subset. Empty
+// (nullopt) without --gt; the exit status when it cannot be used.
+std::optional<int> LoadGroundTruth(const BenchmarkArgs& args,
+                                   const std::vector<InputImage>& images,
+                                   std::optional<std::vector<GroundTruthCamera>>* ground_truth) {
+  if (args.gt_path.empty()) return std::nullopt;
+  auto read = ReadGroundTruth(args.gt_path);
+  if (!read.ok()) {
+    std::cerr << "reconduit: ground truth: " << read.status() << "\n";
+    return 2;
+  }
+  std::vector<GroundTruthCamera> cameras = std::move(read).value();
+  std::set<std::string> names;
+  for (const InputImage& image : images) names.insert(image.name);
+  const std::size_t described = cameras.size();
+  std::erase_if(cameras,
+                [&](const GroundTruthCamera& camera) { return !names.contains(camera.name); });
+  if (cameras.empty()) {
+    std::cerr << "reconduit: ground truth '" << args.gt_path
+              << "' describes none of the photos in '" << args.images.string() << "'\n";
+    return 2;
+  }
+  if (cameras.size() < described) {
+    std::cout << "Ground truth: " << cameras.size() << " of its " << described
+              << " cameras are photos of this folder; comparing those\n";
+  }
+  *ground_truth = std::move(cameras);
+  return std::nullopt;
+}
+
+// Time and peak memory of our stages (the package stage's time aside).
+struct OurRun {
+  PipelineResult result;
+  double seconds = 0.0;
+  std::int64_t peak_memory_bytes = 0;
+};
+
+// Runs the stages in `workspace` and prints a row per stage and the model's figures.
+OurRun RunOurs(const std::vector<std::unique_ptr<Stage>>& stages,
+               const Workspace& workspace,
+               const PipelineOptions& options,
+               const std::optional<std::vector<GroundTruthCamera>>& ground_truth) {
+  OurRun run;
+  run.result = RunPipeline(stages, workspace, options, CancelToken());
+  for (const StageRecord& record : run.result.stages) {
+    PrintRow(record.name, std::string(StageStatusName(record.status)), record.seconds,
+             MiB(record.peak_memory_bytes));
+    if (record.name != "package") run.seconds += record.seconds;
+    run.peak_memory_bytes = std::max(run.peak_memory_bytes, record.peak_memory_bytes);
+  }
+  PrintRow("total", "", run.seconds, MiB(run.peak_memory_bytes));
+  if (run.result.status != StageStatus::kSuccess) {
+    std::cout << "  failed at " << run.result.failed_stage << ": " << run.result.message << "\n";
+  }
+  auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
+  if (model.ok()) {
+    PrintModel(*model, static_cast<int>(workspace.images.size()), ground_truth,
+               ReadFocalStddev(workspace.StageDir("sparse") / "calibration.json"));
+  }
+  return run;
+}
+
+}  // namespace
+
+int RunBenchmark(const std::vector<std::string>& arguments) {
+  BenchmarkArgs args;
+  if (const std::optional<int> status = ParseBenchmarkArgs(arguments, &args)) return *status;
+  const Result<std::vector<fs::path>> files = ListImageFiles(args.images);
+  if (!files.ok()) return UsageError(files.status().message());
+  Workspace workspace;
+  workspace.images = ToInputImages(*files);
+  std::optional<std::vector<GroundTruthCamera>> ground_truth;
+  if (const std::optional<int> status = LoadGroundTruth(args, workspace.images, &ground_truth)) {
+    return *status;
+  }
+  const Result<PipelineOptions> options =
+      LoadPipelineOptions(args.flags.options_file, args.flags.threads);
+  if (!options.ok()) return UsageError(options.status().ToString());
+  auto stages = CreatePipelineStages(args.flags.until);
+  if (!stages.ok()) return UsageError(stages.status().ToString());
+
+  const fs::path work_dir = args.flags.work.empty()
+                                ? fs::temp_directory_path() / "reconduit-benchmark"
+                                : fs::path(args.flags.work);
   // Measure from scratch unless asked to reuse the finished stages of an earlier run (for
   // tuning a late stage: delete its folder under work/ and run again with --resume).
-  if (!resume) fs::remove_all(work_dir / "reconduit", ec);
+  std::error_code ec;
+  if (!args.resume) fs::remove_all(work_dir / "reconduit", ec);
   workspace.work_dir = work_dir / "reconduit" / "work";
   workspace.output_dir = work_dir / "reconduit" / "output";
   fs::create_directories(workspace.work_dir);
   SetMinLogLevel(LogLevel::kWarning);
 
-  std::cout << "Reconduit on " << images.string() << " (" << workspace.images.size()
+  std::cout << "Reconduit on " << args.images.string() << " (" << workspace.images.size()
             << " files, work folder " << work_dir.string() << ")\n";
-  const PipelineResult result = RunPipeline(*stages, workspace, *options, CancelToken());
-  double total = 0.0;
-  std::int64_t peak = 0;
-  for (const StageRecord& record : result.stages) {
-    PrintRow(record.name, std::string(StageStatusName(record.status)), record.seconds,
-             MiB(record.peak_memory_bytes));
-    if (record.name != "package") total += record.seconds;
-    peak = std::max(peak, record.peak_memory_bytes);
-  }
-  PrintRow("total", "", total, MiB(peak));
-  if (result.status != StageStatus::kSuccess) {
-    std::cout << "  failed at " << result.failed_stage << ": " << result.message << "\n";
-  }
-  std::optional<Reconstruction> ours;
-  auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
-  if (model.ok()) {
-    PrintModel(*model, static_cast<int>(workspace.images.size()), ground_truth,
-               ReadFocalStddev(workspace.StageDir("sparse") / "calibration.json"));
-    ours = std::move(*model);
-  }
-
-  if (colmap) {
+  const OurRun ours = RunOurs(*stages, workspace, *options, ground_truth);
+  if (args.colmap) {
     const auto theirs =
-        RunColmap(images, work_dir, static_cast<int>(workspace.images.size()), ground_truth);
+        RunColmap(args.images, work_dir, static_cast<int>(workspace.images.size()), ground_truth);
     if (theirs && theirs->seconds > 0) {
       std::cout << "\nRatio Reconduit / COLMAP\n"
-                << "  time                " << std::setprecision(2) << total / theirs->seconds
-                << "\n"
-                << "  peak memory         " << static_cast<double>(peak) / theirs->peak_memory_bytes
-                << "\n";
+                << "  time                " << std::setprecision(2)
+                << ours.seconds / theirs->seconds << "\n"
+                << "  peak memory         "
+                << static_cast<double>(ours.peak_memory_bytes) / theirs->peak_memory_bytes << "\n";
     }
   }
-  return result.status == StageStatus::kSuccess ? 0 : 1;
+  return ours.result.status == StageStatus::kSuccess ? 0 : 1;
 }
 
 }  // namespace reconduit

@@ -3,12 +3,14 @@
 //   reconduit reconstruct <images_dir> <out_dir> [--until STAGE] [--options FILE]
 //                         [--work DIR] [--threads N]
 //   reconduit options            (every pipeline option, as JSON)
+//   reconduit benchmark ...      (cli/benchmark.h)
 //
 // The output folder receives exactly the files result.zip would hold. Intermediate files go
 // to a work folder (default "<out_dir>.work"); running the same command again resumes after
 // the last finished stage. Ctrl-C cancels cleanly. Exit status: 0 success, 1 the pipeline
-// failed, 2 bad command line, 130 canceled.
-#include "core/io/file_util.h"
+// failed, 2 bad command line, 130 canceled. Each command parses its own flags with
+// boost::program_options (ParseCommandArguments in cli_common.h).
+#include "core/image/ingest.h"
 #include "core/pipeline/default_stages.h"
 #include "core/pipeline/runner.h"
 #include "core/util/logging.h"
@@ -21,6 +23,9 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -30,44 +35,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kUsage[] =
-    "Usage:\n"
-    "  reconduit reconstruct <images_dir> <out_dir> [--until STAGE] [--options FILE]\n"
-    "                        [--work DIR] [--threads N]\n"
-    "  reconduit options\n"
-    "  reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE] [--options FILE]\n"
-    "                      [--work DIR] [--threads N] [--resume]\n"
-    "\n"
-    "reconstruct  runs the pipeline on every file in <images_dir> (files that are not usable\n"
-    "             photos are reported and skipped) and writes the results to <out_dir>.\n"
-    "  --until STAGE   stop after this stage (then pack what exists); stages: {stages}\n"
-    "  --options FILE  pipeline options as a JSON object (see `reconduit options`)\n"
-    "  --work DIR      intermediate files (default <out_dir>.work); rerunning resumes there\n"
-    "  --threads N     threads for parallel stages (default: all cores)\n"
-    "options      prints every pipeline option with its type, default, range and help.\n"
-    "benchmark    runs the stages up to --until (default sparse) from scratch and prints "
-    "per-stage\n"
-    "             time and peak memory, counts, and with --gt (Strecha .camera folder or\n"
-    "             Middlebury *_par.txt) the camera accuracy; --colmap also runs COLMAP (CPU) on\n"
-    "             the same photos and prints the ratios. Ground truth of photos not in\n"
-    "             <images_dir> is ignored. --resume reuses the finished stages of the last\n"
-    "             run in the same --work folder (those whose options did not change).\n";
-
 CancelToken g_cancel;
 void OnSignal(int) { g_cancel.RequestCancel(); }
-
-std::string Usage() {
-  std::string text = kUsage, stages;
-  for (const std::string& name : PipelineStageNames())
-    stages += (stages.empty() ? "" : ", ") + name;
-  text.replace(text.find("{stages}"), 8, stages.empty() ? "(package only)" : stages);
-  return text;
-}
-
-int UsageError(const std::string& message) {
-  std::cerr << "reconduit: " << message << "\n\n" << Usage();
-  return 2;
-}
 
 // One line per update, rewritten in place on a terminal.
 class ProgressPrinter {
@@ -97,65 +66,56 @@ class ProgressPrinter {
   std::string last_;
 };
 
-int Reconstruct(const std::vector<std::string>& args) {
+// `reconstruct`'s arguments, checked.
+struct ReconstructArgs {
+  fs::path images_dir;
+  fs::path out_dir;
+  RunFlags flags;
+};
+
+// Returns the exit status when the command should stop (bad arguments).
+std::optional<int> ParseReconstructArgs(const std::vector<std::string>& args,
+                                        ReconstructArgs* parsed) {
   std::vector<std::string> positional;
-  std::string until, options_file, work;
-  int threads = -1;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    auto value = [&](std::string* out) {
-      if (i + 1 >= args.size()) return false;
-      *out = args[++i];
-      return true;
-    };
-    std::string text;
-    if (arg == "--until") {
-      if (!value(&until)) return UsageError("--until needs a stage name");
-    } else if (arg == "--options") {
-      if (!value(&options_file)) return UsageError("--options needs a file");
-    } else if (arg == "--work") {
-      if (!value(&work)) return UsageError("--work needs a folder");
-    } else if (arg == "--threads") {
-      if (!value(&text)) return UsageError("--threads needs a number");
-      try {
-        threads = std::stoi(text);
-      } catch (const std::exception&) {
-        return UsageError("--threads needs a number, got '" + text + "'");
-      }
-    } else if (!arg.empty() && arg[0] == '-') {
-      return UsageError("unknown option '" + arg + "'");
-    } else {
-      positional.push_back(arg);
-    }
-  }
+  const std::string error = ParseCommandArguments(args, RunOptions(&parsed->flags), &positional);
+  if (!error.empty()) return UsageError(error);
   if (positional.size() != 2) return UsageError("reconstruct needs <images_dir> and <out_dir>");
-  const fs::path images_dir = positional[0], out_dir = positional[1];
+  parsed->images_dir = positional[0];
+  parsed->out_dir = positional[1];
   std::error_code ec;
-  if (!fs::is_directory(images_dir, ec)) {
-    std::cerr << "reconduit: '" << images_dir.string() << "' is not a folder\n";
+  if (!fs::is_directory(parsed->images_dir, ec)) {
+    std::cerr << "reconduit: '" << parsed->images_dir.string() << "' is not a folder\n";
     return 2;
   }
+  return std::nullopt;
+}
 
-  const Result<PipelineOptions> options = LoadPipelineOptions(options_file, threads);
-  if (!options.ok()) return UsageError(options.status().message());
-  auto stages = CreatePipelineStages(until);
-  if (!stages.ok()) return UsageError(stages.status().message());
-
-  Workspace workspace;
-  workspace.images = ListInputImages(images_dir);
-  if (workspace.images.empty()) {
-    std::cerr << "reconduit: no files in '" << images_dir.string() << "'\n";
+// The photos and the output and work folders (created); the exit status on failure.
+std::optional<int> PrepareWorkspace(const ReconstructArgs& args, Workspace* workspace) {
+  const Result<std::vector<fs::path>> files = ListImageFiles(args.images_dir);
+  if (!files.ok()) return UsageError(files.status().message());
+  workspace->images = ToInputImages(*files);
+  if (workspace->images.empty()) {
+    std::cerr << "reconduit: no files in '" << args.images_dir.string() << "'\n";
     return 2;
   }
-  workspace.output_dir = out_dir;
-  workspace.work_dir = work.empty() ? fs::path(out_dir.string() + ".work") : fs::path(work);
-  fs::create_directories(workspace.output_dir, ec);
-  fs::create_directories(workspace.work_dir, ec);
+  workspace->output_dir = args.out_dir;
+  workspace->work_dir = args.flags.work.empty() ? fs::path(args.out_dir.string() + ".work")
+                                                : fs::path(args.flags.work);
+  std::error_code ec;
+  fs::create_directories(workspace->output_dir, ec);
+  fs::create_directories(workspace->work_dir, ec);
   if (ec) {
     std::cerr << "reconduit: cannot create the output folders: " << ec.message() << "\n";
     return 1;
   }
+  return std::nullopt;
+}
 
+// Runs the stages with a progress line on stderr; Ctrl-C cancels.
+PipelineResult RunWithProgress(const std::vector<std::unique_ptr<Stage>>& stages,
+                               const Workspace& workspace,
+                               const PipelineOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
   ProgressPrinter printer;
@@ -168,13 +128,14 @@ int Reconstruct(const std::vector<std::string>& args) {
   callbacks.on_progress = [&](const Stage& s, const ProgressUpdate& u, double overall) {
     printer.Update(s, u, overall);
   };
-  std::cerr << "reconduit: " << workspace.images.size() << " files from " << images_dir.string()
-            << " -> " << out_dir.string() << " (work folder " << workspace.work_dir.string()
-            << ")\n";
-  const PipelineResult result = RunPipeline(*stages, workspace, *options, g_cancel, callbacks);
+  const PipelineResult result = RunPipeline(stages, workspace, options, g_cancel, callbacks);
   printer.EndLine();
   SetLogSink({});
+  return result;
+}
 
+// The table of stages with status, time and peak memory.
+void PrintStageTable(const PipelineResult& result) {
   std::cout << "\n"
             << std::left << std::setw(12) << "stage" << std::setw(12) << "status" << std::right
             << std::setw(10) << "seconds" << std::setw(16) << "peak memory MiB"
@@ -188,8 +149,26 @@ int Reconstruct(const std::vector<std::string>& args) {
   }
   std::cout << std::left << std::setw(24) << "total" << std::right << std::setw(10)
             << std::setprecision(2) << result.seconds << "\n";
+}
+
+int Reconstruct(const std::vector<std::string>& arguments) {
+  ReconstructArgs args;
+  if (const std::optional<int> status = ParseReconstructArgs(arguments, &args)) return *status;
+  const Result<PipelineOptions> options =
+      LoadPipelineOptions(args.flags.options_file, args.flags.threads);
+  if (!options.ok()) return UsageError(options.status().message());
+  auto stages = CreatePipelineStages(args.flags.until);
+  if (!stages.ok()) return UsageError(stages.status().message());
+  Workspace workspace;
+  if (const std::optional<int> status = PrepareWorkspace(args, &workspace)) return *status;
+
+  std::cerr << "reconduit: " << workspace.images.size() << " files from "
+            << args.images_dir.string() << " -> " << args.out_dir.string() << " (work folder "
+            << workspace.work_dir.string() << ")\n";
+  const PipelineResult result = RunWithProgress(*stages, workspace, *options);
+  PrintStageTable(result);
   if (result.status == StageStatus::kSuccess) {
-    std::cout << "results in " << out_dir.string() << "\n";
+    std::cout << "results in " << args.out_dir.string() << "\n";
     return 0;
   }
   std::cerr << "reconduit: stage " << result.failed_stage << " " << StageStatusName(result.status)

@@ -11,6 +11,8 @@
 #include <string>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <utility>
+#include <vector>
 
 #ifndef RECONDUIT_CLI_BINARY
 #error "RECONDUIT_CLI_BINARY must name the reconduit executable"
@@ -78,6 +80,34 @@ TEST_F(CliTest, ReconstructRejectsMissingFolder) {
   EXPECT_EQ(outcome.exit_status, 2);
   EXPECT_NE(outcome.output.find("no-such-folder"), std::string::npos) << outcome.output;
   EXPECT_FALSE(fs::exists(root_ / "out"));
+}
+
+// Both commands parse their flags the same way (boost::program_options): a message naming the
+// problem, the usage, exit status 2, and nothing written.
+TEST_F(CliTest, BadFlagsGiveMessageUsageAndStatus2) {
+  const std::string images = Quoted(root_ / "images");
+  const std::string out = Quoted(root_ / "out");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"reconstruct " + images + " " + out + " --colour blue", "unrecognised option '--colour'"},
+      {"reconstruct " + images + " " + out + " --threads many", "'many'"},
+      {"reconstruct " + images + " " + out + " --until", "--until"},
+      {"reconstruct " + images, "reconstruct needs <images_dir> and <out_dir>"},
+      {"benchmark " + images + " --resume --colour", "unrecognised option '--colour'"},
+      {"benchmark " + images + " " + out, "benchmark needs one <images_dir>"},
+      {"benchmark " + images + " --threads 2x", "'2x'"},
+      {"frobnicate", "unknown command 'frobnicate'"},
+  };
+  for (const auto& [arguments, expected] : cases) {
+    SCOPED_TRACE(arguments);
+    const Outcome outcome = RunCli(arguments);
+    EXPECT_EQ(outcome.exit_status, 2);
+    EXPECT_NE(outcome.output.find(expected), std::string::npos) << outcome.output;
+    EXPECT_NE(outcome.output.find("Usage:"), std::string::npos) << outcome.output;
+  }
+  EXPECT_FALSE(fs::exists(root_ / "out"));
+  const Outcome help = RunCli("benchmark --help");
+  EXPECT_EQ(help.exit_status, 0);
+  EXPECT_NE(help.output.find("reconduit benchmark <images_dir>"), std::string::npos);
 }
 
 TEST_F(CliTest, BenchmarkRejectsUnreadableGroundTruth) {

@@ -8,9 +8,11 @@
 
 #include <arpa/inet.h>
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <netinet/in.h>
 #include <poll.h>
 #include <signal.h>
@@ -262,6 +264,50 @@ TEST_F(HttpServerTest, ConfigFileSetsOptionsUnderTheEnvironmentAndFlags) {
   }
 }
 
+// One file for both programs (as scripts/start.sh uses it through RECONDUIT_CONFIG): the shared
+// data folder at the top, each program's settings in its section; each skips the other's.
+TEST_F(HttpServerTest, ServerAndWorkerShareOneConfigFile) {
+  const fs::path config = dir_ / "reconduit.conf";
+  std::ofstream(config) << "# reconduit-server and reconduit-worker\n"
+                        << "data = " << (dir_ / "shared-data").string() << "\n"
+                        << "[server]\n"
+                        << "host = 127.0.0.1\n"
+                        << "port = 0\n"
+                        << "threads = 2\n"
+                        << "token = file-token\n"
+                        << "[worker]\n"
+                        << "id = shared-worker\n"
+                        << "threads = 1\n"
+                        << "lease = 2.5\n"
+                        << "poll = 0.1\n"
+                        << "once = true\n";
+  ServerProcess server;
+  ASSERT_TRUE(server.Start({}, dir_ / "stderr.txt", {"RECONDUIT_CONFIG=" + config.string()}))
+      << server.error();
+  ASSERT_TRUE(server.WaitUntilHealthy()) << server.Stderr();
+  EXPECT_EQ(Fetch(server.port(), "GET", "/").status, 401u);
+  EXPECT_EQ(Fetch(server.port(), "GET", "/", {{"Authorization", "Bearer file-token"}}).status,
+            200u);
+  EXPECT_TRUE(fs::exists(dir_ / "shared-data" / "reconduit.db"));
+
+  // The worker on the same file: the same data folder, its own id and lease; once = true lets
+  // it exit after one look at the (empty) queue.
+  const fs::path worker_log = dir_ / "worker.txt";
+  const std::string command = "RECONDUIT_CONFIG='" + config.string() + "' '" +
+                              RECONDUIT_WORKER_BINARY + "' > '" + worker_log.string() + "' 2>&1";
+  const int status = std::system(command.c_str());
+  std::ifstream log_file(worker_log);
+  const std::string log((std::istreambuf_iterator<char>(log_file)),
+                        std::istreambuf_iterator<char>());
+  ASSERT_TRUE(WIFEXITED(status)) << log;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << log;
+  EXPECT_NE(log.find("reconduit-worker shared-worker: data folder " +
+                     fs::absolute(dir_ / "shared-data").string() + ", lease 2.5 s"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(server.Terminate(5s), 0) << server.Stderr();
+}
+
 TEST_F(HttpServerTest, BadConfigFileExitsWithUsageErrorNamingFileAndKey) {
   struct Case {
     std::string text;
@@ -272,7 +318,12 @@ TEST_F(HttpServerTest, BadConfigFileExitsWithUsageErrorNamingFileAndKey) {
       {"port = not-a-port\n", {"'not-a-port'", "'port'"}},
       {"port = 0\nthreads = 0\n", {"num_threads must be in [1, 64]", "'threads' in "}},
       {"port = 0\nport = 1\n", {"'port' cannot be specified more than once"}},
-      {"[server]\nport = 0\n", {"unrecognised option 'server.port'"}},
+      // The file may serve both programs: [server] is read, other known sections are skipped,
+      // but a typo in a name or a section name is still an error.
+      {"[server]\nport = 0\ncolour = blue\n", {"unrecognised option 'server.colour'"}},
+      {"[sever]\nport = 0\n", {"unknown section [sever]"}},
+      {"port = 0\n[server]\nport = 1\n", {"'port' cannot be specified more than once"}},
+      {"[server]\nport = not-a-port\n", {"'not-a-port'", "'server.port' in "}},
       {"port = 0\nconfig = other.conf\n", {"unrecognised option 'config'"}},
       {"port 0\n", {"invalid line 'port 0'"}},
   };

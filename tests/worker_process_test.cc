@@ -592,6 +592,31 @@ TEST_F(WorkerProcessTest, ConfigFileSettingsUnderTheEnvironmentAndFlags) {
   }
 }
 
+// A file shared with reconduit-server: the top-level names and [worker] apply, [server] is
+// skipped (its port and web would be unknown names here).
+TEST_F(WorkerProcessTest, ConfigFileWithSectionsReadsTopLevelAndWorkerSection) {
+  const fs::path config = dir_.path() / "reconduit.conf";
+  std::ofstream(config) << "data = " << layout_.root().string() << "\n"
+                        << "[server]\n"
+                        << "port = 8080\n"
+                        << "web = /nowhere\n"
+                        << "threads = 64\n"
+                        << "[worker]\n"
+                        << "id = from-section\n"
+                        << "lease = 2.5\n"
+                        << "poll = 0.1\n"
+                        << "until = ingest\n"
+                        << "once = true\n";
+  const std::string id = CreateJob(kSmall);
+  WorkerProcess worker(layout_.root(), "", {}, {"RECONDUIT_CONFIG=" + config.string()});
+  const std::optional<int> status = worker.Wait(30s);
+  ASSERT_TRUE(status.has_value()) << "once = true must make it exit\n" << worker.Log();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << worker.Log();
+  EXPECT_THAT(worker.Log(), HasSubstr("reconduit-worker from-section: data folder"));
+  EXPECT_THAT(worker.Log(), HasSubstr("lease 2.5 s, stages up to ingest"));
+  EXPECT_EQ(Get(id).state, JobState::kSucceeded) << Describe(id);
+}
+
 TEST_F(WorkerProcessTest, BadConfigFileExitsWithStatus2NamingFileAndKey) {
   struct Case {
     std::string text;
@@ -602,8 +627,12 @@ TEST_F(WorkerProcessTest, BadConfigFileExitsWithStatus2NamingFileAndKey) {
       {"lease = soon\n", "invalid value 'soon' for 'lease'"},
       {"until = everything\n", "invalid value 'everything' for 'until'"},
       {"once = perhaps\n", "invalid value 'perhaps' for 'once'"},
-      {"poll = 1\npoll = 2\n", "'poll' is set more than once"},
-      {"[worker]\nlease = 5\n", "unrecognised option 'worker.lease'"},
+      {"poll = 1\npoll = 2\n", "'poll' cannot be specified more than once"},
+      // [worker] is read, other known sections are skipped; typos are still errors.
+      {"[worker]\nlease = 5\ncolour = blue\n", "unrecognised option 'worker.colour'"},
+      {"[wroker]\nlease = 5\n", "unknown section [wroker]"},
+      {"lease = 5\n[worker]\nlease = 6\n", "'lease' cannot be specified more than once"},
+      {"[worker]\nlease = 0.1\n", "invalid value '0.1' for 'worker.lease'"},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     SCOPED_TRACE(cases[i].text);

@@ -1,12 +1,11 @@
 // reconduit-worker: claims queued jobs from the shared job store and runs the reconstruction
-// pipeline on them, one at a time, until stopped. See worker/README.md.
+// pipeline on them, one at a time, until stopped. See worker/README.md. Settings: flags,
+// environment, then the configuration file's top-level names and [worker] section
+// (config/config.h).
 #include "core/util/logging.h"
 #include "worker/job_runner.h"
 
-#include <boost/program_options/errors.hpp>
-#include <boost/program_options/options_description.hpp>
-#include <boost/program_options/parsers.hpp>
-
+#include "config/config.h"
 #include "store/data_layout.h"
 #include <atomic>
 #include <cerrno>
@@ -14,19 +13,15 @@
 #include <condition_variable>
 #include <csignal>
 #include <cstdlib>
-#include <cstring>
 #include <fcntl.h>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <iostream>
 #include <mutex>
 #include <optional>
 #include <poll.h>
 #include <random>
-#include <set>
 #include <string>
-#include <string_view>
 #include <thread>
 #include <unistd.h>
 #include <vector>
@@ -38,41 +33,16 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 constexpr char kUsage[] =
-    "Usage: reconduit-worker [--config FILE] [--data DIR] [--id NAME] [--lease SECONDS]\n"
-    "                        [--poll SECONDS] [--threads N] [--until STAGE]\n"
-    "                        [--stop-timeout SECONDS] [--once]\n"
+    "Usage: reconduit-worker [options]\n"
     "\n"
     "Claims the oldest queued job in <data>/reconduit.db, runs the reconstruction pipeline on\n"
     "it (resuming after the stages an earlier run finished), records progress and events, and\n"
     "finishes it; then the next. Run as many workers side by side as the machine allows: each\n"
-    "job goes to exactly one of them.\n"
-    "\n"
-    "  --config FILE          read settings from FILE (env RECONDUIT_CONFIG): INI-style\n"
-    "                         'name = value' lines with the long flag names without '--'\n"
-    "                         (data, id, lease, poll, threads, until, stop-timeout, once =\n"
-    "                         true|false); '#' starts a comment. An unknown name or a bad\n"
-    "                         value is an error (exit status 2).\n"
-    "  --data DIR             data folder shared with reconduit-server (env RECONDUIT_DATA;\n"
-    "                         default ./data). Created if missing.\n"
-    "  --id NAME              this worker's name in the job store (env RECONDUIT_WORKER_ID;\n"
-    "                         default <host>:<pid>:<random>). Must be unique among workers.\n"
-    "  --lease SECONDS        how long a claimed job stays ours without a heartbeat (env\n"
-    "                         RECONDUIT_LEASE_SECONDS; default 60). Heartbeats run every\n"
-    "                         lease/3; a crashed worker's job is requeued when it expires.\n"
-    "  --poll SECONDS         pause between looks at an empty queue (env\n"
-    "                         RECONDUIT_POLL_SECONDS; default 1).\n"
-    "  --threads N            threads per job when the job's options do not set num_threads\n"
-    "                         (env RECONDUIT_WORKER_THREADS; default 0 = all cores).\n"
-    "  --until STAGE          run the stages up to STAGE, then pack the results (env\n"
-    "                         RECONDUIT_UNTIL_STAGE; default: every stage). For deployments\n"
-    "                         that want only the early stages; jobs still succeed, with what\n"
-    "                         those stages produce.\n"
-    "  --stop-timeout SECONDS on SIGTERM/SIGINT, how long to wait for the running stage to\n"
-    "                         stop before giving the job back anyway and exiting (env\n"
-    "                         RECONDUIT_STOP_TIMEOUT_SECONDS; default 10).\n"
-    "  --once                 run at most one job (none if the queue is empty), then exit.\n"
-    "  --help                 this text.\n"
-    "\n"
+    "job goes to exactly one of them. Settings come from the flags, the environment variables\n"
+    "named below, and the configuration file given by --config: 'name = value' lines at the\n"
+    "top or under [worker] (the flag names without '--'; 'once = true').\n";
+
+constexpr char kEpilogue[] =
     "Precedence: command line > environment > config file > defaults.\n"
     "Log level: env RECONDUIT_LOG_LEVEL=debug|info|warning|error (default info).\n"
     "Signals: SIGTERM or SIGINT stops claiming, cancels the running job's stage and gives the\n"
@@ -89,33 +59,6 @@ void OnSignal(int signal) {
   const unsigned char byte = static_cast<unsigned char>(signal);
   [[maybe_unused]] const ssize_t written = write(g_signal_pipe[1], &byte, 1);
   errno = saved_errno;
-}
-
-int UsageError(const std::string& message) {
-  std::cerr << "reconduit-worker: " << message << " (see --help)\n";
-  return 2;
-}
-
-std::optional<double> ParseSeconds(const std::string& text) {
-  try {
-    std::size_t used = 0;
-    const double value = std::stod(text, &used);
-    if (used != text.size() || !(value > 0.0) || value > 86400.0) return std::nullopt;
-    return value;
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-}
-
-std::optional<int> ParseCount(const std::string& text, int max) {
-  try {
-    std::size_t used = 0;
-    const int value = std::stoi(text, &used);
-    if (used != text.size() || value < 0 || value > max) return std::nullopt;
-    return value;
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
 }
 
 std::chrono::milliseconds ToMillis(double seconds) {
@@ -142,272 +85,222 @@ struct Flags {
   bool once = false;
 };
 
-std::optional<bool> ParseBool(const std::string& text) {
-  if (text == "true" || text == "1" || text == "yes" || text == "on") return true;
-  if (text == "false" || text == "0" || text == "no" || text == "off") return false;
-  return std::nullopt;
+// The option table, bound to the fields of *flags, with the worker's environment variables.
+config::ProgramSettings WorkerProgram(Flags* flags) {
+  namespace po = boost::program_options;
+  config::ProgramSettings program;
+  program.program = "reconduit-worker";
+  program.section = "worker";
+  program.usage = kUsage;
+  program.epilogue = kEpilogue;
+  // clang-format off
+  program.options.add_options()
+      ("data", po::value(&flags->data)->value_name("DIR")->default_value(flags->data),
+       "Data folder shared with reconduit-server (env RECONDUIT_DATA). Created if missing.")
+      ("id", po::value(&flags->id)->value_name("NAME"),
+       "This worker's name in the job store (env RECONDUIT_WORKER_ID; default "
+       "<host>:<pid>:<random>). Must be unique among workers.")
+      ("lease", po::value(&flags->lease_seconds)->value_name("SECONDS")->default_value(flags->lease_seconds),
+       "Seconds a claimed job stays ours without a heartbeat (env RECONDUIT_LEASE_SECONDS; "
+       "0.3-86400). Heartbeats run every lease/3; a crashed worker's job is requeued when it "
+       "expires.")
+      ("poll", po::value(&flags->poll_seconds)->value_name("SECONDS")->default_value(flags->poll_seconds),
+       "Seconds between looks at an empty queue (env RECONDUIT_POLL_SECONDS).")
+      ("threads", po::value(&flags->threads)->value_name("N")->default_value(flags->threads),
+       "Threads per job when the job's options do not set num_threads (env "
+       "RECONDUIT_WORKER_THREADS; 0 = all cores, at most 256).")
+      ("until", po::value(&flags->until)->value_name("STAGE"),
+       "Run the stages up to this one, then pack the results (env RECONDUIT_UNTIL_STAGE; "
+       "default: every stage). For deployments that want only the early stages; jobs still "
+       "succeed, with what those stages produce.")
+      ("stop-timeout",
+       po::value(&flags->stop_timeout_seconds)->value_name("SECONDS")->default_value(flags->stop_timeout_seconds),
+       "On SIGTERM/SIGINT, seconds to wait for the running stage to stop before giving the "
+       "job back anyway and exiting (env RECONDUIT_STOP_TIMEOUT_SECONDS).")
+      ("once", po::bool_switch(&flags->once),
+       "Run at most one job (none if the queue is empty), then exit.");
+  // clang-format on
+  program.environment = {{"data", "RECONDUIT_DATA"},
+                         {"id", "RECONDUIT_WORKER_ID"},
+                         {"lease", "RECONDUIT_LEASE_SECONDS"},
+                         {"poll", "RECONDUIT_POLL_SECONDS"},
+                         {"threads", "RECONDUIT_WORKER_THREADS"},
+                         {"until", "RECONDUIT_UNTIL_STAGE"},
+                         {"stop-timeout", "RECONDUIT_STOP_TIMEOUT_SECONDS"}};
+  return program;
+}
+
+// The ranges the types do not express; the first problem, or "".
+std::string CheckFlags(const config::Settings& settings, const Flags& flags) {
+  const auto seconds_ok = [](double s) { return s > 0.0 && s <= 86400.0; };
+  if (flags.data.empty()) return settings.Invalid("data", "must not be empty");
+  if (settings.values.count("id") != 0 && (flags.id.empty() || flags.id.size() > 200)) {
+    return settings.Invalid("id", "must have 1 to 200 characters");
+  }
+  if (!seconds_ok(flags.lease_seconds) || flags.lease_seconds < 0.3) {
+    return settings.Invalid("lease", "must be in [0.3, 86400] seconds");
+  }
+  if (!seconds_ok(flags.poll_seconds)) {
+    return settings.Invalid("poll", "must be in (0, 86400] seconds");
+  }
+  if (!seconds_ok(flags.stop_timeout_seconds)) {
+    return settings.Invalid("stop-timeout", "must be in (0, 86400] seconds");
+  }
+  if (flags.threads < 0 || flags.threads > 256) {
+    return settings.Invalid("threads", "must be in [0, 256]");
+  }
+  if (settings.values.count("until") != 0) {
+    if (const Status known = CheckUntilStage(flags.until); !known.ok()) {
+      return settings.Invalid("until", known.message());
+    }
+  }
+  return "";
 }
 
 // Flags over environment over the config file over defaults. Returns an exit status when the
 // program should stop.
 std::optional<int> ParseFlags(int argc, char** argv, Flags* flags) {
-  auto env = [](const char* name) -> std::optional<std::string> {
-    const char* value = std::getenv(name);
-    if (value == nullptr || *value == '\0') return std::nullopt;
-    return std::string(value);
-  };
-  struct Setting {
-    std::string flag;
-    const char* env;
-    std::function<bool(const std::string&)> set;
-  };
-  const std::vector<Setting> settings = {
-      {"--data", "RECONDUIT_DATA",
-       [&](const std::string& v) {
-         flags->data = v;
-         return !v.empty();
-       }},
-      {"--id", "RECONDUIT_WORKER_ID",
-       [&](const std::string& v) {
-         flags->id = v;
-         return !v.empty() && v.size() <= 200;
-       }},
-      {"--lease", "RECONDUIT_LEASE_SECONDS",
-       [&](const std::string& v) {
-         const auto s = ParseSeconds(v);
-         if (s && *s >= 0.3) flags->lease_seconds = *s;
-         return s && *s >= 0.3;
-       }},
-      {"--poll", "RECONDUIT_POLL_SECONDS",
-       [&](const std::string& v) {
-         const auto s = ParseSeconds(v);
-         if (s) flags->poll_seconds = *s;
-         return s.has_value();
-       }},
-      {"--threads", "RECONDUIT_WORKER_THREADS",
-       [&](const std::string& v) {
-         const auto n = ParseCount(v, 256);
-         if (n) flags->threads = *n;
-         return n.has_value();
-       }},
-      {"--until", "RECONDUIT_UNTIL_STAGE",
-       [&](const std::string& v) {
-         flags->until = v;
-         const Status known = CheckUntilStage(v);
-         if (!known.ok()) std::cerr << "reconduit-worker: " << known.message() << "\n";
-         return known.ok();
-       }},
-      {"--stop-timeout", "RECONDUIT_STOP_TIMEOUT_SECONDS",
-       [&](const std::string& v) {
-         const auto s = ParseSeconds(v);
-         if (s) flags->stop_timeout_seconds = *s;
-         return s.has_value();
-       }},
-  };
-
-  // --help and --config first: help needs no valid settings, and the file is read before the
-  // environment and the flags, which override it.
-  std::optional<std::string> config_path = env("RECONDUIT_CONFIG");
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg(argv[i]);
-    if (arg == "--help" || arg == "-h") {
-      std::cout << kUsage;
-      return 0;
-    }
-    if (arg == "--config") {
-      if (i + 1 >= argc) return UsageError("--config needs a value");
-      config_path = argv[++i];
-    }
+  const config::ProgramSettings program = WorkerProgram(flags);
+  config::Settings settings;
+  if (const std::optional<int> status =
+          config::ParseSettings(program, std::vector<std::string>(argv + 1, argv + argc), &settings,
+                                std::cout, std::cerr)) {
+    return status;
   }
-  if (config_path) {
-    const std::string& path = *config_path;
-    std::ifstream file(path);
-    if (!file) {
-      std::cerr << "reconduit-worker: cannot read the config file '" << path
-                << "': " << std::strerror(errno) << "\n";
-      return 2;
-    }
-    namespace po = boost::program_options;
-    po::options_description keys;
-    for (const Setting& setting : settings) {
-      keys.add_options()(setting.flag.substr(2).c_str(), po::value<std::string>());
-    }
-    keys.add_options()("once", po::value<std::string>());
-    const std::string where = "reconduit-worker: config file '" + path + "': ";
-    try {
-      // Unknown names (a typo, "config", a [section]) are errors, never ignored.
-      const po::parsed_options parsed = po::parse_config_file(file, keys, false);
-      std::set<std::string> seen;
-      for (const po::option& option : parsed.options) {
-        const std::string& key = option.string_key;
-        const std::string value = option.value.empty() ? "" : option.value.front();
-        if (!seen.insert(key).second) {
-          std::cerr << where << "'" << key << "' is set more than once\n";
-          return 2;
-        }
-        bool valid = false;
-        if (key == "once") {
-          const std::optional<bool> once = ParseBool(value);
-          if (once) flags->once = *once;
-          valid = once.has_value();
-        } else {
-          for (const Setting& setting : settings) {
-            if (setting.flag.substr(2) == key) valid = setting.set(value);
-          }
-        }
-        if (!valid) {
-          std::cerr << where << "invalid value '" << value << "' for '" << key << "'\n";
-          return 2;
-        }
-      }
-    } catch (const po::error& e) {
-      std::cerr << where << e.what() << "\n";
-      return 2;
-    }
-  }
-  for (const Setting& setting : settings) {
-    if (const auto value = env(setting.env); value && !setting.set(*value)) {
-      std::cerr << "reconduit-worker: invalid " << setting.env << "='" << *value << "'\n";
-      return 2;
-    }
-  }
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg(argv[i]);
-    if (arg == "--config") {
-      ++i;  // Read above.
-      continue;
-    }
-    if (arg == "--once") {
-      flags->once = true;
-      continue;
-    }
-    bool known = false;
-    for (const Setting& setting : settings) {
-      if (arg != setting.flag) continue;
-      known = true;
-      if (i + 1 >= argc) return UsageError(arg + " needs a value");
-      const std::string value(argv[++i]);
-      if (!setting.set(value)) return UsageError("invalid value '" + value + "' for " + arg);
-    }
-    if (!known) return UsageError("unknown argument '" + arg + "'");
+  if (const std::string error = CheckFlags(settings, *flags); !error.empty()) {
+    std::cerr << "reconduit-worker: " << error << "\n";
+    return 2;
   }
   if (flags->id.empty()) flags->id = DefaultWorkerId();
   return std::nullopt;
 }
 
-int Main(int argc, char** argv) {
-  Flags flags;
-  if (const auto status = ParseFlags(argc, argv, &flags)) return *status;
-
-  // SIGTERM/SIGINT: the handler only writes the signal number to a pipe (async-signal-safe);
-  // a normal thread reads it and does the work. sigwait() in a thread would not do: libraries
-  // start threads before main() (OpenBLAS's pool), and the kernel may deliver the signal to one
-  // of them, whose mask we cannot set.
-  if (pipe2(g_signal_pipe, O_CLOEXEC | O_NONBLOCK) != 0) {
-    std::cerr << "reconduit-worker: cannot create the signal pipe\n";
-    return 1;
-  }
+// SIGTERM/SIGINT: the handler only writes the signal number to a pipe (async-signal-safe); a
+// normal thread reads it and does the work (SignalWatcher). sigwait() in a thread would not do:
+// libraries start threads before main() (OpenBLAS's pool), and the kernel may deliver the signal
+// to one of them, whose mask we cannot set.
+bool InstallSignalHandlers() {
+  if (pipe2(g_signal_pipe, O_CLOEXEC | O_NONBLOCK) != 0) return false;
   struct sigaction action {};
   action.sa_handler = OnSignal;
   sigemptyset(&action.sa_mask);
   action.sa_flags = SA_RESTART;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  return true;
+}
 
-  const DataLayout layout(flags.data);
+// The data folder's job store; null after printing why not.
+std::unique_ptr<JobStore> OpenStore(const DataLayout& layout) {
   std::error_code ec;
   fs::create_directories(layout.JobsDir(), ec);
   if (ec) {
     std::cerr << "reconduit-worker: cannot create the data folder " << layout.root().string()
               << ": " << ec.message() << "\n";
-    return 1;
+    return nullptr;
   }
   Result<std::unique_ptr<JobStore>> opened = OpenSqliteJobStore(layout.DatabasePath().string());
   if (!opened.ok()) {
     std::cerr << "reconduit-worker: cannot open the job store " << layout.DatabasePath().string()
               << ": " << opened.status() << "\n";
-    return 1;
+    return nullptr;
   }
-  std::unique_ptr<JobStore> store = std::move(opened).value();
+  return std::move(opened).value();
+}
 
+// Crash-safety tests only: SIGKILL ourselves at a named moment (JobRunnerOptions::on_moment, or
+// "claimed": right after a claim, before the job starts), deterministically where an outside
+// kill -9 could not aim. Does nothing unless RECONDUIT_WORKER_CRASH_AT names a moment.
+std::function<void(const std::string&)> CrashAtMoment() {
+  const char* variable = std::getenv("RECONDUIT_WORKER_CRASH_AT");
+  const std::string crash_at = variable != nullptr ? variable : "";
+  if (crash_at.empty()) return {};
+  return [crash_at](const std::string& moment) {
+    if (moment != crash_at) return;
+    std::cerr << "reconduit-worker: RECONDUIT_WORKER_CRASH_AT=" << crash_at
+              << " reached: killing this process" << std::endl;
+    kill(getpid(), SIGKILL);
+  };
+}
+
+JobRunnerOptions RunnerOptions(const Flags& flags, const DataLayout& layout) {
   JobRunnerOptions options;
   options.data_dir = layout.root();
   options.worker_id = flags.id;
   options.lease = ToMillis(flags.lease_seconds);
   options.default_num_threads = flags.threads;
   options.make_stages = StagesUntil(flags.until);
-  // Crash-safety tests only: SIGKILL ourselves at a named moment (JobRunnerOptions::on_moment,
-  // or "claimed": right after a claim, before the job starts), deterministically where an
-  // outside kill -9 could not aim.
-  const std::string crash_at = std::getenv("RECONDUIT_WORKER_CRASH_AT") != nullptr
-                                   ? std::getenv("RECONDUIT_WORKER_CRASH_AT")
-                                   : "";
-  auto crash_if = [crash_at](const std::string& moment) {
-    if (crash_at.empty() || moment != crash_at) return;
-    std::cerr << "reconduit-worker: RECONDUIT_WORKER_CRASH_AT=" << crash_at
-              << " reached: killing this process" << std::endl;
-    kill(getpid(), SIGKILL);
-  };
-  if (!crash_at.empty()) options.on_moment = crash_if;
+  options.on_moment = CrashAtMoment();
   // A cancel request should be seen within a second, but never more often than a few beats
   // per lease.
   options.cancel_check_interval = std::min(1000ms, options.lease / 4);
-  JobRunner runner(*store, options);
+  return options;
+}
 
-  LOG_INFO << "reconduit-worker " << flags.id << ": data folder "
-           << fs::absolute(layout.root()).string() << ", lease " << flags.lease_seconds << " s"
-           << (flags.until.empty() ? "" : ", stages up to " + flags.until);
-  if (Result<SweepResult> swept = store->SweepExpiredLeases(); !swept.ok()) {
+void SweepStoppedWorkers(JobStore& store) {
+  if (Result<SweepResult> swept = store.SweepExpiredLeases(); !swept.ok()) {
     LOG_WARNING << "cannot sweep expired leases: " << swept.status();
   } else if (swept->requeued + swept->failed + swept->canceled > 0) {
     LOG_INFO << "jobs of stopped workers: " << swept->requeued << " requeued, " << swept->failed
              << " failed (out of attempts), " << swept->canceled << " canceled";
   }
+}
 
+// The state the claim loop and the signal thread share.
+struct StopState {
   std::mutex mutex;
   std::condition_variable wake;
   std::atomic<bool> stop{false};
   std::atomic<bool> finished{false};
-  const auto stop_timeout = ToMillis(flags.stop_timeout_seconds);
+};
 
-  std::thread signal_thread([&] {
-    std::optional<std::chrono::steady_clock::time_point> deadline;
-    while (!finished) {
-      pollfd readable{g_signal_pipe[0], POLLIN, 0};
-      unsigned char signal = 0;
-      if (poll(&readable, 1, 100) == 1 && read(g_signal_pipe[0], &signal, 1) == 1) {
-        if (!stop.exchange(true)) {
-          LOG_INFO << "signal " << static_cast<int>(signal)
-                   << ": stopping; the running job goes back to the queue";
-          runner.RequestStop();
-          { std::lock_guard lock(mutex); }
-          wake.notify_all();
-          deadline = std::chrono::steady_clock::now() + stop_timeout;
-        } else {
-          deadline = std::chrono::steady_clock::now();  // Second signal: do not wait.
-        }
-      }
-      if (deadline && !finished && std::chrono::steady_clock::now() >= *deadline) {
-        // The stage did not notice the cancel in time: hand the job back and leave. The next
-        // worker starts the interrupted stage over.
-        const Status released = runner.ReleaseRunningJobNow();
-        LOG_WARNING << "the running stage did not stop in time; "
-                    << (released.ok() ? "job released" : released.ToString()) << "; exiting";
-        std::_Exit(0);
+// The signal thread's body: the first signal asks the runner to stop and wakes the claim loop;
+// when the stage has not stopped `stop_timeout` later (or at a second signal) the job is handed
+// back and the process exits. Returns when state->finished is set.
+void WatchSignals(JobRunner& runner, std::chrono::milliseconds stop_timeout, StopState* state) {
+  std::optional<std::chrono::steady_clock::time_point> deadline;
+  while (!state->finished) {
+    pollfd readable{g_signal_pipe[0], POLLIN, 0};
+    unsigned char signal = 0;
+    if (poll(&readable, 1, 100) == 1 && read(g_signal_pipe[0], &signal, 1) == 1) {
+      if (!state->stop.exchange(true)) {
+        LOG_INFO << "signal " << static_cast<int>(signal)
+                 << ": stopping; the running job goes back to the queue";
+        runner.RequestStop();
+        { std::lock_guard lock(state->mutex); }
+        state->wake.notify_all();
+        deadline = std::chrono::steady_clock::now() + stop_timeout;
+      } else {
+        deadline = std::chrono::steady_clock::now();  // Second signal: do not wait.
       }
     }
-  });
+    if (deadline && !state->finished && std::chrono::steady_clock::now() >= *deadline) {
+      // The stage did not notice the cancel in time: hand the job back and leave. The next
+      // worker starts the interrupted stage over.
+      const Status released = runner.ReleaseRunningJobNow();
+      LOG_WARNING << "the running stage did not stop in time; "
+                  << (released.ok() ? "job released" : released.ToString()) << "; exiting";
+      std::_Exit(0);
+    }
+  }
+}
 
+// Claims and runs jobs until stopped (or after one look with --once).
+void ClaimLoop(const Flags& flags,
+               const JobRunnerOptions& options,
+               JobStore& store,
+               JobRunner& runner,
+               StopState* state) {
   bool announced_waiting = false;
   const auto poll_interval = ToMillis(flags.poll_seconds);
-  while (!stop) {
-    Result<std::optional<Job>> claimed = store->ClaimNextJob(flags.id, options.lease);
+  while (!state->stop) {
+    Result<std::optional<Job>> claimed = store.ClaimNextJob(flags.id, options.lease);
     if (!claimed.ok()) {
       LOG_WARNING << "cannot claim a job: " << claimed.status() << "; retrying";
     } else if (claimed->has_value()) {
       announced_waiting = false;
       const Job& job = **claimed;
-      crash_if("claimed");
+      if (options.on_moment) options.on_moment("claimed");
       const JobRunReport report = runner.Run(job);
       LOG_INFO << "job " << job.id << ": " << JobRunOutcomeName(report.outcome) << " in "
                << report.seconds << " s"
@@ -421,10 +314,34 @@ int Main(int argc, char** argv) {
       }
       if (flags.once) break;
     }
-    std::unique_lock lock(mutex);
-    wake.wait_for(lock, poll_interval, [&] { return stop.load(); });
+    std::unique_lock lock(state->mutex);
+    state->wake.wait_for(lock, poll_interval, [&] { return state->stop.load(); });
   }
-  finished = true;
+}
+
+int Main(int argc, char** argv) {
+  Flags flags;
+  if (const auto status = ParseFlags(argc, argv, &flags)) return *status;
+  if (!InstallSignalHandlers()) {
+    std::cerr << "reconduit-worker: cannot create the signal pipe\n";
+    return 1;
+  }
+  const DataLayout layout(flags.data);
+  const std::unique_ptr<JobStore> store = OpenStore(layout);
+  if (store == nullptr) return 1;
+  const JobRunnerOptions options = RunnerOptions(flags, layout);
+  JobRunner runner(*store, options);
+
+  LOG_INFO << "reconduit-worker " << flags.id << ": data folder "
+           << fs::absolute(layout.root()).string() << ", lease " << flags.lease_seconds << " s"
+           << (flags.until.empty() ? "" : ", stages up to " + flags.until);
+  SweepStoppedWorkers(*store);
+
+  StopState state;
+  std::thread signal_thread(
+      [&] { WatchSignals(runner, ToMillis(flags.stop_timeout_seconds), &state); });
+  ClaimLoop(flags, options, *store, runner, &state);
+  state.finished = true;
   signal_thread.join();
   LOG_INFO << "reconduit-worker " << flags.id << ": stopped";
   return 0;
