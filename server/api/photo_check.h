@@ -6,7 +6,8 @@
 // would block every other request served by this I/O thread. The ingest stage decodes every
 // photo anyway and refuses one whose compressed data is corrupt, with a per-image reason in
 // the job's report; such a photo is accepted at upload.
-// Upload handling (upload.cc) talks to the store; only photo_check.cc depends on core/image.
+// Upload handling (upload.cc) talks to the store and detects the type by the first bytes
+// (core/image/image_format.h); the header checks are here.
 #ifndef RECONDUIT_SERVER_API_PHOTO_CHECK_H_
 #define RECONDUIT_SERVER_API_PHOTO_CHECK_H_
 
