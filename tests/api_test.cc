@@ -319,6 +319,16 @@ TEST_F(ApiTest, RefusesBadInputWithTheRightStatusAndLeavesNothingBehind) {
   EXPECT_EQ(response.status, 400u);
   EXPECT_NE(ErrorMessage(response).find("cut.jpg: truncated"), std::string::npos) << response.body;
 
+  // Corrupt compressed data between an intact header and end marker: uploads are checked from
+  // their headers only (no decoding on an HTTP I/O thread), so the photo is accepted here; the
+  // ingest stage decodes it and refuses it (core/image/image_check_test.cc).
+  std::string scrambled = good;
+  for (std::size_t i = good.size() / 2; i < good.size() / 2 + 64; ++i) scrambled[i] = '\0';
+  response = Upload({{"images", "good.jpg", good}, {"images", "scrambled.jpg", scrambled}});
+  ASSERT_EQ(response.status, 201u) << response.body;
+  ++created;
+  EXPECT_EQ(Json(response)["images"]["items"][1]["status"], "accepted") << response.body;
+
   // Over the size limit: announced (413 before the body) and chunked (413 while streaming).
   const std::string big(1600000, 'x');
   response = Upload({{"images", "big.jpg", "\xff\xd8\xff" + big}});

@@ -22,8 +22,9 @@ bool SiftOptions::Check(std::string* error) const {
   std::ostringstream m;
   if (max_image_side < 64 || max_image_side > 20000) {
     m << "max_image_side must be in [64, 20000], got " << max_image_side;
-  } else if (max_features < 16 || max_features > 100000) {
-    m << "max_features must be in [16, 100000], got " << max_features;
+  } else if (max_features < kMinMaxFeatures || max_features > kMaxMaxFeatures) {
+    m << "max_features must be in [" << kMinMaxFeatures << ", " << kMaxMaxFeatures << "], got "
+      << max_features;
   } else if (!(spread_fraction >= 0.0 && spread_fraction <= 1.0)) {
     m << "spread_fraction must be in [0, 1], got " << spread_fraction;
   } else if (grid_cells < 1 || grid_cells > 64) {

@@ -10,6 +10,7 @@
 #define RECONDUIT_CORE_FEATURE_SIFT_H_
 
 #include "core/feature/features.h"
+#include "core/options/feature_limits.h"
 
 #include <opencv2/core.hpp>
 
@@ -22,8 +23,9 @@ struct SiftOptions {
   // Features are detected on a copy whose longer side is at most this many pixels (INTER_AREA
   // downscaling); keypoints are reported in original-image pixels. [64, 20000]
   int max_image_side = 3200;
-  // At most this many features per image. [16, 100000]
-  int max_features = 8192;
+  // At most this many features per image. [kMinMaxFeatures, kMaxMaxFeatures], the range of
+  // the max_features option (core/options/feature_limits.h).
+  int max_features = kDefaultMaxFeatures;
   // Share of max_features chosen per grid cell rather than by global strength. [0, 1]
   double spread_fraction = 0.3;
   // Grid cells along the image's longer side for the spread (square cells). [1, 64]

@@ -50,6 +50,21 @@ TEST(SiftOptions, DefaultsAreValid) {
   EXPECT_NE(error.find("spread_fraction"), std::string::npos);
 }
 
+TEST(SiftOptions, MaxFeaturesRangeIsTheOptionTables) {
+  SiftOptions options;
+  EXPECT_EQ(options.max_features, kDefaultMaxFeatures);
+  std::string error;
+  for (const int value : {kMinMaxFeatures, kMaxMaxFeatures}) {
+    options.max_features = value;
+    EXPECT_TRUE(options.Check(&error)) << error;
+  }
+  for (const int value : {kMinMaxFeatures - 1, kMaxMaxFeatures + 1}) {
+    options.max_features = value;
+    EXPECT_FALSE(options.Check(&error)) << value;
+    EXPECT_NE(error.find("max_features must be in [256, 65536]"), std::string::npos) << error;
+  }
+}
+
 TEST(SelectSpreadKeypoints, KeepsAllWhenUnderBudget) {
   std::vector<cv::KeyPoint> candidates = {cv::KeyPoint(1, 1, 2, 0, 0.1f),
                                           cv::KeyPoint(5, 5, 2, 0, 0.3f)};

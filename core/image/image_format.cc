@@ -27,6 +27,20 @@ std::string_view ImageFormatName(ImageFormat format) {
   return "unknown";
 }
 
+std::string_view ImageFormatExtension(ImageFormat format) {
+  switch (format) {
+    case ImageFormat::kJpeg:
+      return "jpg";
+    case ImageFormat::kPng:
+      return "png";
+    case ImageFormat::kTiff:
+      return "tif";
+    case ImageFormat::kUnknown:
+      break;
+  }
+  return "";
+}
+
 std::string_view ImageFormatMimeType(ImageFormat format) {
   switch (format) {
     case ImageFormat::kJpeg:

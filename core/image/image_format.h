@@ -36,6 +36,9 @@ std::string_view ImageFormatName(ImageFormat format);
 // "image/jpeg", "image/png", "image/tiff", or "application/octet-stream" for unknown.
 std::string_view ImageFormatMimeType(ImageFormat format);
 
+// The file extension stored photos get, without the dot: "jpg", "png", "tif"; "" for unknown.
+std::string_view ImageFormatExtension(ImageFormat format);
+
 // Recognises the format from the first bytes of a file. Fewer bytes than a signature needs
 // (including an empty span) give kUnknown.
 ImageFormat DetectImageFormat(std::span<const std::uint8_t> first_bytes);

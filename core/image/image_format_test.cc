@@ -69,5 +69,12 @@ TEST(ImageFormatName, NamesAndMimeTypes) {
   EXPECT_EQ(ImageFormatMimeType(ImageFormat::kUnknown), "application/octet-stream");
 }
 
+TEST(ImageFormatExtension, ExtensionsOfStoredPhotos) {
+  EXPECT_EQ(ImageFormatExtension(ImageFormat::kJpeg), "jpg");
+  EXPECT_EQ(ImageFormatExtension(ImageFormat::kPng), "png");
+  EXPECT_EQ(ImageFormatExtension(ImageFormat::kTiff), "tif");
+  EXPECT_EQ(ImageFormatExtension(ImageFormat::kUnknown), "");
+}
+
 }  // namespace
 }  // namespace reconduit

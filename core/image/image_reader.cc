@@ -1,106 +1,39 @@
 #include "core/image/image_reader.h"
 
-#include "core/image/image_header.h"
-
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include <algorithm>
-#include <climits>
-#include <cmath>
-#include <cstdio>
-#include <fstream>
-#include <system_error>
-#include <utility>
+#include <cstdint>
+#include <string>
 #include <vector>
 
 namespace reconduit {
 namespace {
 
-std::string Megapixels(std::int64_t pixels) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.1f megapixels", static_cast<double>(pixels) * 1e-6);
-  return text;
-}
-
 std::string SizeText(int width, int height) {
   return std::to_string(width) + "x" + std::to_string(height) + " pixels";
 }
 
-// Reads the whole file into *bytes after checking its size against the limit.
-Status ReadFileBytes(const std::filesystem::path& path,
-                     const ImageReaderOptions& options,
-                     ImageInfo* info,
-                     std::vector<std::uint8_t>* bytes) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(path, error)) {
-    return Status::NotFound(error ? "cannot open the file (" + error.message() + ")"
-                                  : std::string("not a regular file"));
-  }
-  const std::uintmax_t size = std::filesystem::file_size(path, error);
-  if (error) return Status::NotFound("cannot open the file (" + error.message() + ")");
-  info->file_bytes = static_cast<std::int64_t>(size);
-  if (size == 0) return Status::InvalidArgument("the file is empty");
-  if (size > static_cast<std::uintmax_t>(options.max_file_bytes)) {
-    return Status::ResourceExhausted("the file is " + std::to_string(size) +
-                                     " bytes; the maximum is " +
-                                     std::to_string(options.max_file_bytes) + " bytes");
-  }
-  std::ifstream file(path, std::ios::binary);
-  if (!file) return Status::NotFound("cannot open the file");
-  bytes->resize(static_cast<std::size_t>(size));
-  file.read(reinterpret_cast<char*>(bytes->data()), static_cast<std::streamsize>(size));
-  if (static_cast<std::uintmax_t>(file.gcount()) != size) {
-    return Status::Internal("could not read the whole file");
-  }
-  return Status::Ok();
-}
-
-// Runs every check on `path` and decodes it. The pixels (oriented, at working size) are put
-// in *pixels when it is non-null. Returns the record; its status says whether it was accepted.
+// Runs every header check on `path` (InspectImageHeader), then decodes it. The pixels
+// (oriented, at working size) are put in *pixels when it is non-null. Returns the record; its
+// status says whether it was accepted.
 ImageRecord LoadImage(const std::filesystem::path& path,
                       const ImageReaderOptions& options,
                       cv::Mat* pixels) {
-  std::string error;
-  THROW_CHECK(options.Check(&error)) << error;
-
-  ImageRecord record;
-  record.path = path;
-  record.name = path.filename().string();
+  std::vector<std::uint8_t> bytes;
+  ImageRecord record = InspectImageHeader(path, options, &bytes);
+  if (!record.accepted()) return record;
   ImageInfo& info = record.info;
   const auto refuse = [&record](const Status& status) {
+    // Only what the header says survives a refusal: the size is known once decoded.
+    ImageInfo& refused = record.info;
+    refused = ImageInfo{.format = refused.format,
+                        .file_bytes = refused.file_bytes,
+                        .orientation = refused.orientation};
     record.status = Status(status.code(), record.name + ": " + status.message());
     return record;
   };
-
-  std::vector<std::uint8_t> bytes;
-  if (Status status = ReadFileBytes(path, options, &info, &bytes); !status.ok()) {
-    return refuse(status);
-  }
-  info.format = DetectImageFormat(bytes);
-  if (info.format == ImageFormat::kUnknown) {
-    return refuse(Status::InvalidArgument("not a JPEG, PNG or TIFF image"));
-  }
-
-  // Limits from the header, before anything is decoded.
-  const Result<ImageHeader> header = ReadImageHeader(bytes);
-  if (!header.ok()) return refuse(header.status());
-  const std::int64_t num_pixels = std::int64_t{header->width} * header->height;
-  if (num_pixels > options.max_pixels) {
-    return refuse(Status::ResourceExhausted("image is " + SizeText(header->width, header->height) +
-                                            " (" + Megapixels(num_pixels) + "); the maximum is " +
-                                            Megapixels(options.max_pixels)));
-  }
-  if (std::min(header->width, header->height) < options.min_side) {
-    return refuse(Status::InvalidArgument("image is " + SizeText(header->width, header->height) +
-                                          "; the minimum is " + std::to_string(options.min_side) +
-                                          " pixels per side"));
-  }
-  if (Status status = CheckImageComplete(bytes); !status.ok()) return refuse(status);
-
-  const std::optional<ExifInfo> exif = ReadExif(bytes);
-  info.orientation = exif && exif->orientation ? *exif->orientation : 1;
 
   cv::Mat stored;
   try {
@@ -115,52 +48,28 @@ ImageRecord LoadImage(const std::filesystem::path& path,
     return refuse(Status::InvalidArgument("the " + std::string(ImageFormatName(info.format)) +
                                           " data could not be decoded (corrupt or unsupported)"));
   }
-  if (stored.cols != header->width || stored.rows != header->height) {
-    return refuse(
-        Status::InvalidArgument("the decoded image is " + SizeText(stored.cols, stored.rows) +
-                                " but the header says " + SizeText(header->width, header->height)));
+  // The header's stored size: orientations 5..8 swapped it to give info's displayed size.
+  const bool swapped = info.orientation >= 5 && info.orientation <= 8;
+  const int declared_width = swapped ? info.height : info.width;
+  const int declared_height = swapped ? info.width : info.height;
+  if (stored.cols != declared_width || stored.rows != declared_height) {
+    return refuse(Status::InvalidArgument(
+        "the decoded image is " + SizeText(stored.cols, stored.rows) + " but the header says " +
+        SizeText(declared_width, declared_height)));
   }
-
   const cv::Mat oriented = ApplyExifOrientation(stored, info.orientation);
-  info.width = oriented.cols;
-  info.height = oriented.rows;
-  const cv::Size working = WorkingSize(info.width, info.height, options.max_side);
-  info.working_width = working.width;
-  info.working_height = working.height;
-  if (options.read_exif && exif) {
-    info.exif = exif;
-    info.focal = FocalLengthPixelsFromExif(*exif, info.width, info.height);
-  }
   if (pixels != nullptr) {
+    const cv::Size working(info.working_width, info.working_height);
     if (working == oriented.size()) {
       *pixels = oriented;
     } else {
       cv::resize(oriented, *pixels, working, 0.0, 0.0, cv::INTER_AREA);
     }
   }
-  record.status = Status::Ok();
   return record;
 }
 
 }  // namespace
-
-bool ImageReaderOptions::Check(std::string* error) const {
-  std::string message;
-  if (min_side < 1) {
-    message = "min_side = " + std::to_string(min_side) + "; it must be at least 1";
-  } else if (max_pixels < std::int64_t{min_side} * min_side) {
-    message = "max_pixels = " + std::to_string(max_pixels) + "; it must be at least min_side^2 = " +
-              std::to_string(std::int64_t{min_side} * min_side);
-  } else if (max_file_bytes < 1 || max_file_bytes > INT_MAX) {
-    message = "max_file_bytes = " + std::to_string(max_file_bytes) + "; it must be in [1, " +
-              std::to_string(INT_MAX) + "]";
-  } else if (max_side < 0) {
-    message = "max_side = " + std::to_string(max_side) + "; it must be 0 (full size) or positive";
-  }
-  if (message.empty()) return true;
-  if (error != nullptr) *error = "ImageReaderOptions: " + message;
-  return false;
-}
 
 ImageRecord InspectImage(const std::filesystem::path& path, const ImageReaderOptions& options) {
   return LoadImage(path, options, nullptr);
@@ -207,13 +116,8 @@ cv::Mat ApplyExifOrientation(const cv::Mat& image, int orientation) {
 }
 
 cv::Size WorkingSize(int width, int height, int max_side) {
-  const int long_side = std::max(width, height);
-  if (max_side <= 0 || long_side <= max_side) return cv::Size(width, height);
-  const double scale = static_cast<double>(max_side) / long_side;
-  const auto scaled = [scale](int side) {
-    return std::max(1, static_cast<int>(std::lround(side * scale)));
-  };
-  return cv::Size(scaled(width), scaled(height));
+  const auto [working_width, working_height] = WorkingSideLengths(width, height, max_side);
+  return cv::Size(working_width, working_height);
 }
 
 }  // namespace reconduit

@@ -93,7 +93,8 @@ std::vector<OptionSpec> MakeSpecs() {
       "max_image_side", &PipelineOptions::max_image_side, 256, 20000,
       "Features are found on a copy of each photo whose longer side is at most this many "
       "pixels; results are always in the original photo's pixels."));
-  specs.push_back(IntegerOption("max_features", &PipelineOptions::max_features, 256, 65536,
+  specs.push_back(IntegerOption("max_features", &PipelineOptions::max_features, kMinMaxFeatures,
+                                kMaxMaxFeatures,
                                 "At most this many features per photo, spread over the whole "
                                 "photo."));
   specs.push_back(ChoiceOption(

@@ -11,6 +11,7 @@
 #ifndef RECONDUIT_CORE_OPTIONS_PIPELINE_OPTIONS_H_
 #define RECONDUIT_CORE_OPTIONS_PIPELINE_OPTIONS_H_
 
+#include "core/options/feature_limits.h"
 #include "core/util/status.h"
 
 #include <nlohmann/json.hpp>
@@ -35,7 +36,7 @@ struct PipelineOptions {
   // [256, 20000]
   int max_image_side = 3200;
   // At most this many features per photo. [256, 65536]
-  int max_features = 8192;
+  int max_features = kDefaultMaxFeatures;
   // The principal point in the final bundle adjustment of models with 8 or more photos:
   // "auto" refines it when the data clearly support an off-centre point (model selection,
   // see core/sfm/incremental_mapper.h), "center" keeps the image centre, "refine" always

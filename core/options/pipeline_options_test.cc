@@ -82,6 +82,23 @@ TEST(DescribePipelineOptions, ListsEveryOptionWithDefaultsAndRanges) {
   EXPECT_TRUE(listed_choices);
 }
 
+TEST(DescribePipelineOptions, MaxFeaturesUsesTheSharedDefaultAndRange) {
+  const nlohmann::json described = DescribePipelineOptions();
+  bool listed = false;
+  for (const nlohmann::json& option : described["options"]) {
+    if (option["name"] != "max_features") continue;
+    EXPECT_EQ(option["default"], kDefaultMaxFeatures);
+    EXPECT_EQ(option["minimum"], kMinMaxFeatures);
+    EXPECT_EQ(option["maximum"], kMaxMaxFeatures);
+    listed = true;
+  }
+  EXPECT_TRUE(listed);
+  EXPECT_TRUE(ParsePipelineOptions({{"max_features", kMinMaxFeatures}}).ok());
+  EXPECT_TRUE(ParsePipelineOptions({{"max_features", kMaxMaxFeatures}}).ok());
+  EXPECT_FALSE(ParsePipelineOptions({{"max_features", kMinMaxFeatures - 1}}).ok());
+  EXPECT_FALSE(ParsePipelineOptions({{"max_features", kMaxMaxFeatures + 1}}).ok());
+}
+
 TEST(ParsePipelineOptions, AcceptsEachChoice) {
   for (const std::string choice : {"auto", "center", "refine"}) {
     auto options = ParsePipelineOptions({{"principal_point", choice}});

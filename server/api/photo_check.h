@@ -1,55 +1,38 @@
-// Validates one stored upload with core/image's InspectImage and reports what the images table
-// needs, in plain values.
-// Upload handling (upload.cc) talks to the store; only photo_check.cc depends on core/image.
+// Checks one stored upload on the HTTP I/O thread and fills the metadata of its images row.
+//
+// Header checks only (core/image/image_check.h): format by content, size limits from the
+// header, truncation (a missing end-of-image marker or a short chunk), EXIF make, model and
+// focal prior. Pixels are never decoded here: decoding a 100-megapixel photo takes a second and
+// would block every other request served by this I/O thread. The ingest stage decodes every
+// photo anyway and refuses one whose compressed data is corrupt, with a per-image reason in
+// the job's report; such a photo is accepted at upload.
+// Upload handling (upload.cc) talks to the store and detects the type by the first bytes
+// (core/image/image_format.h); the header checks are here.
 #ifndef RECONDUIT_SERVER_API_PHOTO_CHECK_H_
 #define RECONDUIT_SERVER_API_PHOTO_CHECK_H_
 
+#include "store/job_store.h"
 #include <cstdint>
 #include <filesystem>
-#include <optional>
-#include <string>
-#include <string_view>
 
 namespace reconduit::server {
-
-// The image formats an upload may contain, recognised from a file's first bytes.
-enum class PhotoFormat { kUnknown, kJpeg, kPng, kTiff };
-
-// How many leading bytes DetectPhotoFormat needs.
-std::size_t PhotoFormatMagicBytes();
-// JPEG, PNG or TIFF by signature (core/image/image_format.h); kUnknown otherwise or when fewer
-// bytes than a signature are given.
-PhotoFormat DetectPhotoFormat(std::string_view first_bytes);
-// The extension stored photos get: "jpg", "png", "tif"; "" for kUnknown.
-std::string_view PhotoFormatExtension(PhotoFormat format);
 
 struct PhotoCheckOptions {
   // Shortest accepted side in pixels (the job's min_image_side option).
   int min_side = 100;
-  // Largest accepted width * height, checked from the header before decoding.
+  // Largest accepted width * height, checked from the header.
   std::int64_t max_pixels = 100'000'000;
   // Largest accepted file; larger files are rejected without being read.
   std::int64_t max_file_bytes = std::int64_t{256} << 20;
 };
 
-// The verdict on one photo.
-struct PhotoCheck {
-  bool accepted = false;
-  // Why it was rejected, without the file name ("truncated: the JPEG data ends before ...").
-  std::string reason;
-  std::int64_t bytes = 0;
-  // As displayed (after EXIF orientation); set when the header could be read.
-  std::optional<int> width;
-  std::optional<int> height;
-  // Focal length prior in pixels from EXIF, when present.
-  std::optional<double> exif_focal_px;
-  std::string make;
-  std::string model;
-};
-
-// Inspects the photo at `path`: header limits, truncation, a full decode, EXIF. Never throws
-// for a bad file. Thread-safe.
-PhotoCheck CheckPhoto(const std::filesystem::path& path, const PhotoCheckOptions& options);
+// Inspects the photo at `path` (header checks only, see above) and sets the metadata fields
+// of *record: bytes, width and height as displayed (when the header could be read), EXIF
+// focal prior, make and model, status and the refusal reason (without the file name). The
+// names and index are left as they are. Never throws for a bad file. Thread-safe.
+void CheckPhoto(const std::filesystem::path& path,
+                const PhotoCheckOptions& options,
+                JobImageRecord* record);
 
 }  // namespace reconduit::server
 

@@ -1,5 +1,6 @@
 #include "server/api/upload.h"
 
+#include "core/image/image_format.h"
 #include "core/io/file_util.h"
 #include "core/options/pipeline_options.h"
 #include "core/util/logging.h"
@@ -15,6 +16,7 @@
 #include <fcntl.h>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <system_error>
 #include <unistd.h>
@@ -160,8 +162,8 @@ class UploadSession {
                         " bytes, the limit per photo");
     }
     // The type is decided by the first bytes, as soon as they are here.
-    const std::size_t magic = PhotoFormatMagicBytes();
-    if (photo.format == PhotoFormat::kUnknown && head_.size() < magic) {
+    const std::size_t magic = kImageFormatMagicBytes;
+    if (photo.format == ImageFormat::kUnknown && head_.size() < magic) {
       head_.append(data.substr(0, magic - head_.size()));
       if (head_.size() >= magic) {
         if (std::optional<Response> refusal = DecideFormat(); refusal) return refusal;
@@ -175,7 +177,7 @@ class UploadSession {
 
   // Ends the current photo: type check for short files, fsync, close.
   std::optional<Response> EndPhoto() {
-    if (photos_.back().format == PhotoFormat::kUnknown) {
+    if (photos_.back().format == ImageFormat::kUnknown) {
       if (std::optional<Response> refusal = DecideFormat(); refusal) return refusal;
     }
     const int fd = std::exchange(fd_, -1);
@@ -213,21 +215,17 @@ class UploadSession {
       JobImageRecord record;
       record.index = static_cast<int>(i);
       record.original_name = photo.display_name;
-      record.stored_name = StoredPhotoName(record.index, PhotoFormatExtension(photo.format));
+      record.stored_name = StoredPhotoName(record.index, ImageFormatExtension(photo.format));
       std::error_code ec;
       fs::rename(input_dir_ / photo.part_name, input_dir_ / record.stored_name, ec);
       if (ec) return StorageFailure(*services_, "rename " + photo.part_name, ec.value());
 
-      const PhotoCheck check = CheckPhoto(input_dir_ / record.stored_name, check_options);
+      CheckPhoto(input_dir_ / record.stored_name, check_options, &record);
+      // Equal to the file's size; counted here too for the few refusals that cannot open it.
       record.bytes = photo.bytes;
-      record.width = check.width;
-      record.height = check.height;
-      record.exif_focal_px = check.exif_focal_px;
-      record.make = check.make;
-      record.model = check.model;
-      record.status = check.accepted ? ImageStatus::kAccepted : ImageStatus::kRejected;
-      record.reject_reason = check.reason;
-      if (!check.accepted) reasons.push_back(photo.display_name + ": " + check.reason);
+      if (record.status == ImageStatus::kRejected) {
+        reasons.push_back(photo.display_name + ": " + record.reject_reason);
+      }
       total_bytes += photo.bytes;
       job.images.push_back(std::move(record));
     }
@@ -288,14 +286,15 @@ class UploadSession {
   struct Photo {
     std::string display_name;
     std::string part_name;  // "0001.part" while it arrives.
-    PhotoFormat format = PhotoFormat::kUnknown;
+    ImageFormat format = ImageFormat::kUnknown;
     std::int64_t bytes = 0;
   };
 
   std::optional<Response> DecideFormat() {
     Photo& photo = photos_.back();
-    photo.format = DetectPhotoFormat(head_);
-    if (photo.format != PhotoFormat::kUnknown) return std::nullopt;
+    photo.format = DetectImageFormat(std::span<const std::uint8_t>(
+        reinterpret_cast<const std::uint8_t*>(head_.data()), head_.size()));
+    if (photo.format != ImageFormat::kUnknown) return std::nullopt;
     return Refuse(HttpStatus::unsupported_media_type,
                   QuoteForMessage(photo.display_name) +
                       (photo.bytes == 0 ? " is empty" : " is not a JPEG, PNG or TIFF image") +

@@ -17,7 +17,8 @@
 //      options part is validated as soon as it ends (400 naming the field). A zip body goes to
 //      <data>/tmp/<upload-id>/upload.zip and is checked and extracted the same way at the end.
 //   3. At the end: every photo is renamed to its generated name (0001.jpg, 0002.png, ... by
-//      detected type) and inspected (InspectImage: header limits, truncation, decoding, EXIF);
+//      detected type) and checked from its header (photo_check.h: format, header size limits,
+//      truncation, EXIF; no decoding on this I/O thread: ingest refuses undecodable photos);
 //      rejected photos stay listed with their reason, and when none is usable the answer is 400
 //      listing the reasons. The files and the folder are fsynced, the folder is renamed to
 //      <data>/jobs/<id>/input (atomic, same file system), and only then the job and its photo

@@ -19,7 +19,15 @@ TEST(Response, JsonSetsTypeAndBody) {
 TEST(Response, JsonReplacesInvalidUtf8InsteadOfThrowing) {
   Response response = Response::Json({{"name", std::string("a\xff"
                                                            "b")}});
-  EXPECT_NO_THROW(Body(response));
+  // The invalid byte becomes U+FFFD (EF BF BD in UTF-8); the valid ones around it stay.
+  EXPECT_EQ(response.body(),
+            "{\"name\":\"a\xEF\xBF\xBD"
+            "b\"}");
+  nlohmann::json body;
+  ASSERT_NO_THROW(body = Body(response));
+  EXPECT_EQ(body["name"].get<std::string>(),
+            "a\xEF\xBF\xBD"
+            "b");
 }
 
 TEST(Response, SetHeaderReplacesCaseInsensitively) {

@@ -174,6 +174,18 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
                                         beast::flat_buffer& buffer,
                                         std::vector<char>& chunk,
                                         const std::string& remote_address);
+  // Reads the request body into context.body, or piece by piece into `sink` when it is set.
+  // Sets `refusal` when the sink refuses or the body is too large or malformed. Returns false
+  // when nobody is listening any more (write of 100 Continue failed, timeout, disconnect):
+  // then no response is sent.
+  net::awaitable<bool> ReadBody(beast::tcp_stream& stream,
+                                http::request_parser<http::buffer_body>& parser,
+                                beast::flat_buffer& buffer,
+                                std::vector<char>& chunk,
+                                RequestContext& context,
+                                std::uint64_t body_limit,
+                                std::unique_ptr<BodySink>& sink,
+                                std::optional<Response>& refusal);
   // Writes `response` and logs the request; returns false when the write failed.
   net::awaitable<bool> WriteResponse(beast::tcp_stream& stream,
                                      const RequestContext& context,
@@ -503,18 +515,13 @@ std::optional<Response> HttpServer::Impl::Admit(RequestContext& context, Dispatc
   return std::nullopt;
 }
 
-// Note on the coroutines in this file: GCC 12 mishandles non-trivial temporaries inside co_await
-// expressions (a Response temporary was destroyed twice), so awaited calls get named lvalues only.
-net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
-    Connection& connection,
-    http::request_parser<http::buffer_body>& parser,
-    beast::flat_buffer& buffer,
-    std::vector<char>& chunk,
-    const std::string& remote_address) {
-  const auto start = std::chrono::steady_clock::now();
-  beast::tcp_stream& stream = connection.stream;
-  auto& request = parser.get();
+namespace {
 
+// What the handlers know of a request once its header is in: method, target, headers, the
+// request id (the client's X-Request-Id when acceptable, else a new one), Content-Length.
+RequestContext ContextFromHeader(const http::request_parser<http::buffer_body>& parser,
+                                 const std::string& remote_address) {
+  const auto& request = parser.get();
   RequestContext context;
   context.method = request.method();
   context.method_string = ToString(request.method_string());
@@ -527,85 +534,123 @@ net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
   context.request_id =
       client_id && IsAcceptableRequestId(*client_id) ? std::string(*client_id) : NewRequestId();
   if (parser.content_length()) context.content_length = *parser.content_length();
+  return context;
+}
+
+// Calls a streaming handler before the body is read. Returns the refusal it answered with
+// (or a 500 when it threw or returned no sink), or nullopt with its sink in *sink.
+std::optional<Response> StartStreaming(RequestContext& context,
+                                       const StreamingHandler& handler,
+                                       std::unique_ptr<BodySink>* sink) {
+  std::optional<StreamStart> stream_start = Guarded(context, [&] { return handler(context); });
+  if (!stream_start) return InternalError(context);
+  if (auto* response = std::get_if<Response>(&*stream_start)) return std::move(*response);
+  *sink = std::move(std::get<std::unique_ptr<BodySink>>(*stream_start));
+  if (*sink == nullptr) {
+    LOG_ERROR << "streaming handler for " << context.path << " returned a null sink";
+    return InternalError(context);
+  }
+  return std::nullopt;
+}
+
+// The answer to a body read that failed with `ec`: 413 over the limit, 400 for a malformed
+// body, nullopt when nobody is listening any more (timeout or disconnect; logged).
+std::optional<Response> BodyReadFailure(const RequestContext& context,
+                                        const beast::error_code& ec,
+                                        std::uint64_t body_limit) {
+  if (ec == http::error::body_limit) {
+    return ErrorResponse(HttpStatus::payload_too_large, "request body exceeds the limit of " +
+                                                            std::to_string(body_limit) + " bytes");
+  }
+  if (IsParseError(ec)) {
+    return ErrorResponse(HttpStatus::bad_request, "malformed request body: " + ec.message());
+  }
+  LOG_INFO << "http " << context.method_string << " " << context.path
+           << " aborted while reading the body: " << ec.message() << " " << context.remote_address
+           << " id=" << context.request_id;
+  return std::nullopt;
+}
+
+}  // namespace
+
+net::awaitable<bool> HttpServer::Impl::ReadBody(beast::tcp_stream& stream,
+                                                http::request_parser<http::buffer_body>& parser,
+                                                beast::flat_buffer& buffer,
+                                                std::vector<char>& chunk,
+                                                RequestContext& context,
+                                                std::uint64_t body_limit,
+                                                std::unique_ptr<BodySink>& sink,
+                                                std::optional<Response>& refusal) {
+  auto& request = parser.get();
+  // Enforces the limit on chunked bodies, whose size is unknown up front.
+  parser.body_limit(body_limit);
+  const std::optional<std::string_view> expect = context.Header("Expect");
+  if (expect && EqualsIgnoreCase(*expect, "100-continue")) {
+    http::response<http::empty_body> go_on{http::status::continue_, 11};
+    const bool written = co_await WriteMessage(stream, go_on);
+    if (!written) co_return false;
+  }
+  beast::error_code ec;
+  while (!parser.is_done()) {
+    request.body().data = chunk.data();
+    request.body().size = chunk.size();
+    stream.expires_after(options_.body_timeout);
+    co_await http::async_read_some(stream, buffer, parser, Awaitable(ec));
+    if (ec == http::error::need_buffer) ec = {};
+    if (ec) break;
+    const std::size_t n = chunk.size() - request.body().size;
+    if (n == 0) continue;
+    const std::string_view piece(chunk.data(), n);
+    if (sink == nullptr) {
+      context.body.append(piece);
+      continue;
+    }
+    std::optional<std::optional<Response>> early =
+        Guarded(context, [&] { return sink->OnData(piece); });
+    if (!early) {
+      refusal = InternalError(context);
+    } else if (*early) {
+      refusal = std::move(**early);
+    }
+    if (refusal) break;
+  }
+  request.body().data = nullptr;
+  request.body().size = 0;
+  if (!ec) co_return true;
+  if (sink != nullptr) sink->OnAbort(ec.message());
+  sink.reset();
+  refusal = BodyReadFailure(context, ec, body_limit);
+  co_return refusal.has_value();
+}
+
+// Note on the coroutines in this file: GCC 12 mishandles non-trivial temporaries inside co_await
+// expressions (a Response temporary was destroyed twice), so awaited calls get named lvalues only.
+net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
+    Connection& connection,
+    http::request_parser<http::buffer_body>& parser,
+    beast::flat_buffer& buffer,
+    std::vector<char>& chunk,
+    const std::string& remote_address) {
+  const auto start = std::chrono::steady_clock::now();
+  beast::tcp_stream& stream = connection.stream;
+  RequestContext context = ContextFromHeader(parser, remote_address);
 
   Outcome outcome;
-  outcome.keep_alive = request.keep_alive() && !stopping_;
+  outcome.keep_alive = parser.get().keep_alive() && !stopping_;
   const bool has_body = !parser.is_done();
 
   // A response sent before the body was completely read; the connection is not reused then.
   Dispatch dispatch;
   std::optional<Response> refusal = Admit(context, &dispatch);
-
   std::unique_ptr<BodySink> sink;
   if (!refusal && dispatch.streaming_handler != nullptr) {
-    std::optional<StreamStart> stream_start =
-        Guarded(context, [&] { return (*dispatch.streaming_handler)(context); });
-    if (!stream_start) {
-      refusal = InternalError(context);
-    } else if (auto* response = std::get_if<Response>(&*stream_start)) {
-      refusal = std::move(*response);
-    } else {
-      sink = std::move(std::get<std::unique_ptr<BodySink>>(*stream_start));
-      if (sink == nullptr) {
-        LOG_ERROR << "streaming handler for " << context.path << " returned a null sink";
-        refusal = InternalError(context);
-      }
-    }
+    refusal = StartStreaming(context, *dispatch.streaming_handler, &sink);
   }
-
   // Read the body: into context.body, or piece by piece into the sink.
   if (!refusal && has_body) {
-    // Enforces the limit on chunked bodies, whose size is unknown up front.
-    parser.body_limit(dispatch.body_limit);
-    const std::optional<std::string_view> expect = context.Header("Expect");
-    if (expect && EqualsIgnoreCase(*expect, "100-continue")) {
-      http::response<http::empty_body> go_on{http::status::continue_, 11};
-      const bool written = co_await WriteMessage(stream, go_on);
-      if (!written) co_return Outcome{};
-    }
-    beast::error_code ec;
-    while (!parser.is_done()) {
-      request.body().data = chunk.data();
-      request.body().size = chunk.size();
-      stream.expires_after(options_.body_timeout);
-      co_await http::async_read_some(stream, buffer, parser, Awaitable(ec));
-      if (ec == http::error::need_buffer) ec = {};
-      if (ec) break;
-      const std::size_t n = chunk.size() - request.body().size;
-      if (n == 0) continue;
-      const std::string_view piece(chunk.data(), n);
-      if (sink == nullptr) {
-        context.body.append(piece);
-        continue;
-      }
-      std::optional<std::optional<Response>> early =
-          Guarded(context, [&] { return sink->OnData(piece); });
-      if (!early) {
-        refusal = InternalError(context);
-      } else if (*early) {
-        refusal = std::move(**early);
-      }
-      if (refusal) break;
-    }
-    request.body().data = nullptr;
-    request.body().size = 0;
-    if (ec) {
-      if (sink != nullptr) sink->OnAbort(ec.message());
-      sink.reset();
-      if (ec == http::error::body_limit) {
-        refusal = ErrorResponse(
-            HttpStatus::payload_too_large,
-            "request body exceeds the limit of " + std::to_string(dispatch.body_limit) + " bytes");
-      } else if (IsParseError(ec)) {
-        refusal = ErrorResponse(HttpStatus::bad_request, "malformed request body: " + ec.message());
-      } else {
-        // Timeout or disconnect: nobody is listening for a response.
-        LOG_INFO << "http " << context.method_string << " " << context.path
-                 << " aborted while reading the body: " << ec.message() << " "
-                 << context.remote_address << " id=" << context.request_id;
-        co_return Outcome{};
-      }
-    }
+    const bool listening = co_await ReadBody(stream, parser, buffer, chunk, context,
+                                             dispatch.body_limit, sink, refusal);
+    if (!listening) co_return Outcome{};
   }
 
   if (refusal) {
