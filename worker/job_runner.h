@@ -10,24 +10,25 @@
 //      the stage within about that interval;
 //   3. removes from output/ the half-written files of an interrupted earlier run (temporary
 //      files of atomic writes, which packaging would otherwise deliver), then
-//      runs the pipeline (RunJobPipeline over core RunPipeline), resuming after the stages whose
-//      work/<stage>/ stage.json markers say they finished, and mirrors it into the store: stage and
-//      progress (throttled), per-stage progress, time and memory, counts, MarkStageFinished for
-//      each resumable stage whose output is complete (also for stages resumed from disk that the
-//      store had not recorded, e.g. after a crash between the marker and the store write), and
-//      events for stage starts and ends and the job's log lines (rate-limited);
+//      runs the pipeline (RunJobPipeline over core RunPipeline), resuming after the stages
+//      whose work/<stage>/stage.json markers say they finished, and mirrors it into the store:
+//      stage and progress (throttled), per-stage progress, time and memory, counts,
+//      MarkStageFinished for each resumable stage whose output is complete (also for stages
+//      resumed from disk that the store had not recorded, e.g. after a crash between the
+//      marker and the store write), and events for stage starts and ends and the job's log
+//      lines (rate-limited);
 //   4. finishes the job: succeeded with result.zip's size and SHA-256 (the packaging stage's
-//      PackageResult) and the counts; failed with the stage and the message; canceled when a client
-//      asked; released back to the queue when the worker is stopping (RequestStop); nothing
-//      at all when the lease was lost, since another worker may own the job by then.
+//      PackageResult) and the counts; failed with the stage and the message; canceled when a
+//      client asked; released back to the queue when the worker is stopping (RequestStop);
+//      nothing at all when the lease was lost, since another worker may own the job by then.
 //
 // A failing or throwing job never escapes Run(): every exception becomes a failed job.
 //
 // Logging: while a job runs, Run() replaces the process-wide log sink (SetLogSink) with one
 // that forwards every line to the previous sink (by default core/util's, so the line layout is
 // the process's one) with the job id at the head of the message, and records it as a job event
-// (rate-limited). A process therefore runs one job at a time; this is the worker's
-// model (one job per process, several processes side by side).
+// (rate-limited). A process therefore runs one job at a time; this is the worker's model (one
+// job per process, several processes side by side).
 #ifndef RECONDUIT_WORKER_JOB_RUNNER_H_
 #define RECONDUIT_WORKER_JOB_RUNNER_H_
 
