@@ -1,6 +1,7 @@
 #include "store/job_store.h"
 
 #include <cstdint>
+#include <optional>
 #include <random>
 
 namespace reconduit {
@@ -72,6 +73,55 @@ std::string_view EventLevelName(LogLevel level) {
       return "error";
   }
   return "info";
+}
+
+namespace {
+
+// JobCounts' fields and their names in JSON (the API's names).
+struct CountField {
+  const char* name;
+  std::optional<std::int64_t> JobCounts::*field;
+};
+constexpr CountField kCountFields[] = {
+    {"images", &JobCounts::images},
+    {"rejected_images", &JobCounts::rejected_images},
+    {"features", &JobCounts::features},
+    {"candidate_pairs", &JobCounts::candidate_pairs},
+    {"matched_pairs", &JobCounts::matched_pairs},
+    {"inlier_matches", &JobCounts::inlier_matches},
+    {"registered", &JobCounts::registered},
+    {"points", &JobCounts::points},
+    {"faces", &JobCounts::faces},
+    {"models", &JobCounts::models},
+    {"result_files", &JobCounts::result_files},
+};
+
+}  // namespace
+
+bool JobCounts::empty() const { return *this == JobCounts(); }
+
+void JobCounts::Merge(const JobCounts& patch) {
+  for (const CountField& f : kCountFields) {
+    if (patch.*f.field) this->*f.field = patch.*f.field;
+  }
+}
+
+nlohmann::json JobCounts::ToJson() const {
+  nlohmann::json json = nlohmann::json::object();
+  for (const CountField& f : kCountFields) {
+    if (this->*f.field) json[f.name] = *(this->*f.field);
+  }
+  return json;
+}
+
+JobCounts JobCounts::FromJson(const nlohmann::json& json) {
+  JobCounts counts;
+  if (!json.is_object()) return counts;
+  for (const CountField& f : kCountFields) {
+    const auto it = json.find(f.name);
+    if (it != json.end() && it->is_number_integer()) counts.*f.field = it->get<std::int64_t>();
+  }
+  return counts;
 }
 
 }  // namespace reconduit

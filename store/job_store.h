@@ -96,6 +96,34 @@ struct JobImageRecord {
   friend bool operator==(const JobImageRecord&, const JobImageRecord&) = default;
 };
 
+// The figures of a job shown by the API (`counts` in its JSON), one named field per figure;
+// unset fields are not shown. Stored and served as a JSON object with these very field names
+// (ToJson/FromJson), so the API's names are the C++ ones. Filled by the worker as stages finish
+// (worker/job_runner.h); a new figure is a new field here.
+struct JobCounts {
+  std::optional<std::int64_t> images;           // Photos accepted (ingest).
+  std::optional<std::int64_t> rejected_images;  // Photos rejected (ingest).
+  std::optional<std::int64_t> features;         // Features detected (features).
+  std::optional<std::int64_t> candidate_pairs;  // Image pairs to match (pairs).
+  std::optional<std::int64_t> matched_pairs;    // Pairs with verified matches (matching).
+  std::optional<std::int64_t> inlier_matches;   // Verified matches (matching).
+  std::optional<std::int64_t> registered;       // Cameras registered.
+  std::optional<std::int64_t> points;           // 3D points.
+  std::optional<std::int64_t> faces;            // Mesh faces.
+  std::optional<std::int64_t> models;           // Separate models reconstructed.
+  std::optional<std::int64_t> result_files;     // Files in result.zip (packaging).
+
+  bool empty() const;
+  // Sets the fields set in `patch` (a JSON merge patch of ToJson()s).
+  void Merge(const JobCounts& patch);
+  // The set fields, {"images": 12, ...}; {} when none.
+  nlohmann::json ToJson() const;
+  // The fields named in `json` that hold integers; anything else is ignored.
+  static JobCounts FromJson(const nlohmann::json& json);
+
+  friend bool operator==(const JobCounts&, const JobCounts&) = default;
+};
+
 // A job as stored (a row of `jobs`).
 struct Job {
   std::string id;
@@ -130,8 +158,8 @@ struct Job {
   std::string error_stage;
   // Accepted photos.
   int image_count = 0;
-  // Result counts: {"registered": 48, "points": 21034, "faces": 100000, ...}.
-  nlohmann::json counts = nlohmann::json::object();
+  // Result counts (registered cameras, points, faces, ...).
+  JobCounts counts;
   // Size and SHA-256 (64 lower-case hex digits) of result.zip; set when succeeded.
   std::optional<std::int64_t> result_bytes;
   std::string result_sha256;
@@ -190,8 +218,8 @@ struct JobProgressUpdate {
   // RFC 7396 merge patch applied to Job::stage_progress, e.g. {"features": {"progress": 0.4}};
   // null for none. Must be an object or null.
   nlohmann::json stage_progress;
-  // Merge patch applied to Job::counts, e.g. {"registered": 12}; null for none.
-  nlohmann::json counts;
+  // Set fields replace Job::counts' (e.g. registered = 12); empty for none.
+  JobCounts counts;
 };
 
 // What a successful job produced.
@@ -200,8 +228,8 @@ struct JobOutput {
   std::int64_t result_bytes = 0;
   // SHA-256 of result.zip, 64 lower-case hex digits.
   std::string result_sha256;
-  // Merge patch applied to Job::counts; null for none.
-  nlohmann::json counts;
+  // Set fields replace Job::counts'; empty for none.
+  JobCounts counts;
 };
 
 // A log line for a job (a row of `job_events`).

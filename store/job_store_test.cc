@@ -76,6 +76,29 @@ TEST(JobState, NamesRoundTrip) {
   EXPECT_FALSE(IsFinalState(JobState::kRunning));
 }
 
+TEST(JobCounts, JsonWithTheApiNamesAndMerge) {
+  JobCounts counts;
+  EXPECT_TRUE(counts.empty());
+  EXPECT_EQ(counts.ToJson(), nlohmann::json::object());
+  counts.images = 12;
+  counts.registered = 10;
+  EXPECT_FALSE(counts.empty());
+  EXPECT_EQ(counts.ToJson(), (nlohmann::json{{"images", 12}, {"registered", 10}}));
+  EXPECT_EQ(JobCounts::FromJson(counts.ToJson()), counts);
+
+  JobCounts patch;
+  patch.registered = 11;
+  patch.result_files = 4;
+  counts.Merge(patch);
+  EXPECT_EQ(counts.ToJson(),
+            (nlohmann::json{{"images", 12}, {"registered", 11}, {"result_files", 4}}));
+
+  // Unknown names and values that are not integers are ignored.
+  EXPECT_EQ(JobCounts::FromJson({{"points", 5}, {"colour", 3}, {"faces", "many"}}).ToJson(),
+            (nlohmann::json{{"points", 5}}));
+  EXPECT_TRUE(JobCounts::FromJson(nullptr).empty());
+}
+
 TEST(NewJobId, Is128RandomBitsInHex) {
   std::set<std::string> ids;
   for (int i = 0; i < 1000; ++i) {
@@ -114,7 +137,7 @@ TEST_F(JobStoreTest, CreateStoresTheJobAndItsPhotos) {
   EXPECT_EQ(job.max_attempts, 3);
   EXPECT_TRUE(job.lease_owner.empty());
   EXPECT_TRUE(job.finished_stages.empty());
-  EXPECT_EQ(job.counts, nlohmann::json::object());
+  EXPECT_TRUE(job.counts.empty());
 
   Result<std::vector<JobImageRecord>> images = store_->ListImages(job.id);
   ASSERT_TRUE(images.ok()) << images.status();
@@ -406,14 +429,14 @@ TEST_F(JobStoreTest, ProgressMergesPerStageFiguresAndCounts) {
                                    {.stage = "matching",
                                     .progress = 7.0,  // Clamped.
                                     .stage_progress = {{"matching", {{"progress", 0.25}}}},
-                                    .counts = {{"registered", 12}}})
+                                    .counts = {.registered = 12}})
                   .ok());
   const Job job = Get(id);
   EXPECT_EQ(job.stage, "matching");
   EXPECT_DOUBLE_EQ(job.progress, 1.0);
   EXPECT_EQ(job.stage_progress["features"]["progress"], 0.5);
   EXPECT_EQ(job.stage_progress["matching"]["progress"], 0.25);
-  EXPECT_EQ(job.counts["registered"], 12);
+  EXPECT_EQ(job.counts.registered, 12);
 
   EXPECT_EQ(store_->RecordProgress(id, "w", {.stage_progress = 3}).code(),
             StatusCode::kInvalidArgument);
@@ -434,13 +457,13 @@ TEST_F(JobStoreTest, SucceededJobKeepsItsResult) {
                   ->FinishSucceeded(id, "w",
                                     {.result_bytes = 123456,
                                      .result_sha256 = sha,
-                                     .counts = {{"points", 2000}, {"faces", 4000}}})
+                                     .counts = {.points = 2000, .faces = 4000}})
                   .ok());
   const Job job = Get(id);
   EXPECT_EQ(job.state, JobState::kSucceeded);
   EXPECT_EQ(job.result_bytes, 123456);
   EXPECT_EQ(job.result_sha256, sha);
-  EXPECT_EQ(job.counts["points"], 2000);
+  EXPECT_EQ(job.counts.points, 2000);
   EXPECT_DOUBLE_EQ(job.progress, 1.0);
   EXPECT_TRUE(job.lease_owner.empty());
   EXPECT_EQ(job.finished_at_ms, clock_.Now());

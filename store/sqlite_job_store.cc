@@ -128,7 +128,7 @@ Job ReadJob(const Statement& row) {
   job.error = row.Text(17);
   job.error_stage = row.Text(18);
   job.image_count = static_cast<int>(row.Int64(19));
-  job.counts = ParseStoredJson(row.Text(20), "counts");
+  job.counts = JobCounts::FromJson(ParseStoredJson(row.Text(20), "counts"));
   job.result_bytes = row.OptionalInt64(21);
   job.result_sha256 = row.Text(22);
   return job;
@@ -756,7 +756,7 @@ Status SqliteJobStore::RecordProgress(std::string_view job_id,
   return Run("record progress", [&](SqliteConnection& db) -> Status {
     Result<std::string> stage_patch = PatchText(update.stage_progress, "stage_progress");
     if (!stage_patch.ok()) return stage_patch.status();
-    Result<std::string> counts_patch = PatchText(update.counts, "counts");
+    Result<std::string> counts_patch = PatchText(update.counts.ToJson(), "counts");
     if (!counts_patch.ok()) return counts_patch.status();
     Statement statement(db.get(),
                         "UPDATE jobs SET stage = coalesce(?3, stage), progress = ?4, "
@@ -838,7 +838,7 @@ Status SqliteJobStore::FinishSucceeded(std::string_view job_id,
     return Status::InvalidArgument("result_sha256 must be 64 lower-case hex digits");
   }
   if (output.result_bytes < 0) return Status::InvalidArgument("result_bytes must be >= 0");
-  Result<std::string> counts = PatchText(output.counts, "counts");
+  Result<std::string> counts = PatchText(output.counts.ToJson(), "counts");
   if (!counts.ok()) return counts.status();
   return FinishOwned(
       "finish job", job_id, worker_id,

@@ -470,7 +470,7 @@ TEST_F(ApiTest, ServesResultsAndEnforcesTheJobStates) {
   std::ofstream(job_dir / "output" / "model.glb", std::ios::binary) << "glTF....";
   std::ofstream(job_dir / "output" / "report" / "similarity.png", std::ios::binary) << "png!";
   const std::string sha = Sha256Hex(zip_bytes);
-  ASSERT_TRUE(Store().FinishSucceeded(id, kWorker, {10000, sha, nullptr}).ok());
+  ASSERT_TRUE(Store().FinishSucceeded(id, kWorker, {10000, sha, {}}).ok());
 
   const std::string base = "/api/v1/jobs/" + id;
   const TestResponse whole = Fetch(port_, "GET", base + "/result.zip");

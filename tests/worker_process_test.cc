@@ -249,7 +249,7 @@ TEST_F(WorkerProcessTest, ProcessesQueuedJobsAndWaitsQuietly) {
     const Job job = Get(id);
     ASSERT_TRUE(job.result_bytes.has_value());
     EXPECT_EQ(*job.result_bytes, static_cast<std::int64_t>(fs::file_size(layout_.ResultZip(id))));
-    EXPECT_EQ(job.counts.value("images", 0), kSmall.count);
+    EXPECT_EQ(job.counts.images.value_or(0), kSmall.count);
     EXPECT_FALSE(fs::exists(layout_.ResultZip(id).string() + ".tmp"));
   }
   // Idle for ~10 polls: "waiting for jobs" is said once, not once per poll.
@@ -462,8 +462,8 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
     EXPECT_TRUE(job.lease_owner.empty());
     EXPECT_TRUE(job.error.empty()) << job.error;
     EXPECT_EQ(job.finished_stages, kResumableStages);
-    EXPECT_EQ(job.counts.value("images", 0), kSmall.count);
-    EXPECT_EQ(job.counts.value("registered", 0), kSmall.count);
+    EXPECT_EQ(job.counts.images.value_or(0), kSmall.count);
+    EXPECT_EQ(job.counts.registered.value_or(0), kSmall.count);
 
     // The rescuer's run: after its "started by" line, the stages finished on disk are skipped
     // and every other stage (and packaging) runs exactly once.

@@ -1,16 +1,17 @@
 #include "worker/job_runner.h"
 
+#include "core/pipeline/runner.h"
+#include "core/util/default_log_sink.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
 
 #include <algorithm>
 #include <condition_variable>
 #include <cstdio>
-#include <ctime>
 #include <exception>
-#include <iostream>
+#include <memory>
+#include <optional>
 #include <set>
-#include <sstream>
 #include <thread>
 #include <utility>
 
@@ -34,23 +35,29 @@ std::string FormatMiB(std::int64_t bytes) {
   return text;
 }
 
-// The default log sink's format (core/util/logging.cc), for when no sink was installed.
-void WriteStderrLine(LogLevel level, std::string_view message) {
-  const std::time_t t = std::time(nullptr);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char stamp[32];
-  std::strftime(stamp, sizeof(stamp), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  std::cerr << stamp << ' ' << LogLevelName(level) << ' ' << message << '\n';
-}
-
-// Installs a log sink for the duration of a job and restores the previous one.
-class ScopedLogSink {
+// While a job runs: every log line goes to the previous sink (the default one: the process's
+// one line layout) with the job's id at the head of the message, and, rate-limited, to the
+// job's events. Restores the previous sink when destroyed.
+class JobLogSink {
  public:
-  explicit ScopedLogSink(LogSink sink) : previous_(SetLogSink(std::move(sink))) {}
-  ScopedLogSink(const ScopedLogSink&) = delete;
-  ScopedLogSink& operator=(const ScopedLogSink&) = delete;
-  ~ScopedLogSink() { SetLogSink(std::move(previous_)); }
+  JobLogSink(const std::string& job_id, ProgressSink& events) {
+    auto previous = std::make_shared<LogSink>(SetLogSink({}));
+    SetLogSink(*previous);  // Only to learn it; replaced next.
+    previous_ = *previous;
+    const std::string prefix = "[job " + job_id.substr(0, 8) + "] ";
+    SetLogSink([previous, prefix, &events](LogLevel level, std::string_view line) {
+      const std::string text = prefix + std::string(line);
+      if (*previous) {
+        (*previous)(level, text);
+      } else {
+        DefaultLogSink(level, text);
+      }
+      events.AddLogLine(level, line);
+    });
+  }
+  JobLogSink(const JobLogSink&) = delete;
+  JobLogSink& operator=(const JobLogSink&) = delete;
+  ~JobLogSink() { SetLogSink(std::move(previous_)); }
 
  private:
   LogSink previous_;
@@ -221,8 +228,8 @@ bool JobRunnerOptions::Check(std::string* error) const {
   return sink.Check(error);
 }
 
-Result<std::vector<JobPhoto>> PhotosFromRecords(const std::vector<JobImageRecord>& records,
-                                                const fs::path& input_dir) {
+Result<std::vector<InputImage>> PhotosFromRecords(const std::vector<JobImageRecord>& records,
+                                                  const fs::path& input_dir) {
   std::vector<const JobImageRecord*> accepted;
   for (const JobImageRecord& record : records) {
     if (record.status == ImageStatus::kAccepted) accepted.push_back(&record);
@@ -231,7 +238,7 @@ Result<std::vector<JobPhoto>> PhotosFromRecords(const std::vector<JobImageRecord
       accepted.begin(), accepted.end(),
       [](const JobImageRecord* a, const JobImageRecord* b) { return a->index < b->index; });
   if (accepted.empty()) return Status::InvalidArgument("the job has no accepted photo");
-  std::vector<JobPhoto> photos;
+  std::vector<InputImage> photos;
   std::set<std::string> names;
   for (const JobImageRecord* record : accepted) {
     if (!IsPlainFileName(record->stored_name)) {
@@ -248,32 +255,36 @@ Result<std::vector<JobPhoto>> PhotosFromRecords(const std::vector<JobImageRecord
   return photos;
 }
 
-nlohmann::json CountsFromStageSummary(std::string_view stage, const nlohmann::json& summary) {
-  if (!summary.is_object()) return nullptr;
-  // {stage, summary key, count name}; "" matches any stage. Stages that land later add rows.
-  struct Mapping {
-    std::string_view stage, key, count;
+JobCounts CountsOfStage(const StageRecord& record) {
+  JobCounts counts;
+  if (record.status != StageStatus::kSuccess) return counts;
+  // An integer of the summary, when there.
+  const auto take = [&](const char* key, std::optional<std::int64_t>& count) {
+    const auto it = record.summary.find(key);
+    if (record.summary.is_object() && it != record.summary.end() && it->is_number()) {
+      count = it->get<std::int64_t>();
+    }
   };
-  static constexpr Mapping kMappings[] = {
-      {"ingest", "accepted", "images"},
-      {"ingest", "rejected", "rejected_images"},
-      {"features", "features", "features"},
-      {"pairs", "pairs", "candidate_pairs"},
-      {"matching", "pairs", "matched_pairs"},
-      {"matching", "inlier_matches", "inlier_matches"},
-      {"package", "files", "result_files"},
-      {"", "registered", "registered"},
-      {"", "points", "points"},
-      {"", "faces", "faces"},
-      {"", "models", "models"},
-  };
-  nlohmann::json counts = nlohmann::json::object();
-  for (const Mapping& m : kMappings) {
-    if (!m.stage.empty() && m.stage != stage) continue;
-    const auto it = summary.find(m.key);
-    if (it != summary.end() && it->is_number()) counts[std::string(m.count)] = *it;
+  const std::string& stage = record.name;
+  if (stage == "ingest") {
+    take("accepted", counts.images);
+    take("rejected", counts.rejected_images);
+  } else if (stage == "features") {
+    take("features", counts.features);
+  } else if (stage == "pairs") {
+    take("pairs", counts.candidate_pairs);
+  } else if (stage == "matching") {
+    take("pairs", counts.matched_pairs);
+    take("inlier_matches", counts.inlier_matches);
   }
-  if (counts.empty()) return nullptr;
+  // Figures of the reconstruction, from whichever stage reports them.
+  take("registered", counts.registered);
+  take("points", counts.points);
+  take("faces", counts.faces);
+  take("models", counts.models);
+  if (record.package) {
+    counts.result_files = static_cast<std::int64_t>(record.package->archive.files.size());
+  }
   return counts;
 }
 
@@ -306,10 +317,387 @@ std::string JobRunner::running_job_id() const {
   return running_job_id_;
 }
 
+namespace {
+
+// One run of one claimed job: the steps of JobRunner::Run and the state they share. The steps,
+// in order: keep the lease (a heartbeat thread and the cancel token's probe), prepare the
+// inputs, run the pipeline with callbacks that mirror it into the store, and finish the job
+// in the store according to how the pipeline ended and why.
+class JobRun {
+ public:
+  JobRun(JobStore& store,
+         const JobRunnerOptions& options,
+         const DataLayout& layout,
+         const std::atomic<bool>& stop_requested,
+         const Job& job,
+         CancelToken cancel)
+      : store_(store),
+        options_(options),
+        layout_(layout),
+        stop_requested_(stop_requested),
+        job_(job),
+        cancel_(std::move(cancel)),
+        sink_(store, job.id, options.worker_id, options.sink),
+        finished_in_store_(job.finished_stages.begin(), job.finished_stages.end()) {
+    sink_.SetOnLeaseLost([this] {
+      lease_lost_ = true;
+      cancel_.RequestCancel();
+    });
+  }
+
+  // Never throws: every exception becomes a failed job.
+  JobRunReport Execute() {
+    try {
+      return KeepLeaseAndRun();
+    } catch (const std::exception& e) {
+      return Fail(current_stage_, std::string("internal error in the worker: ") + e.what());
+    } catch (...) {
+      return Fail(current_stage_, "internal error in the worker: unknown exception");
+    }
+  }
+
+ private:
+  // The lease and the log sink last as long as the run; the rest is RunPipelineAndFinish.
+  JobRunReport KeepLeaseAndRun() {
+    JobLogSink log_sink(job_.id, sink_);
+    cancel_.SetProbe([this] { return BeatAndCheckStop(); }, options_.cancel_check_interval);
+    // Clears the probe (it refers to this object) when the run ends, whatever the path.
+    struct ProbeReset {
+      const CancelToken& token;
+      ~ProbeReset() { token.SetProbe({}); }
+    } probe_reset{cancel_};
+    const std::chrono::milliseconds interval =
+        options_.heartbeat_interval.count() > 0 ? options_.heartbeat_interval : options_.lease / 3;
+    HeartbeatThread heartbeat(interval, [this] {
+      Beat();
+      sink_.Flush();
+    });
+    LOG_INFO << "running job " << job_.id << " (" << job_.image_count << " photos, run "
+             << job_.attempts + 1 << " of at most " << job_.max_attempts << ")";
+    return RunPipelineAndFinish();
+  }
+
+  JobRunReport RunPipelineAndFinish() {
+    Workspace workspace;
+    PipelineOptions options;
+    if (std::optional<JobRunReport> ended = PrepareInputs(&workspace, &options)) return *ended;
+    const PipelineResult result =
+        RunJobPipeline(workspace, options, options_.make_stages, cancel_, StoreMirror());
+    // Final heartbeat: the lease must still be ours (and long enough) for the last writes.
+    Beat();
+    if (result.status == StageStatus::kSuccess) return FinishSucceeded(result);
+    return FinishUnsuccessful(result);
+  }
+
+  // ---- Heartbeat ----
+
+  // One heartbeat: renews the lease and learns about a cancel request or a lost job.
+  void Beat() {
+    std::lock_guard lock(beat_mutex_);
+    if (finishing_ || lease_lost_) return;
+    const Result<HeartbeatReply> reply =
+        store_.Heartbeat(job_.id, options_.worker_id, options_.lease);
+    if (!reply.ok()) {
+      // A busy database: the next beat tries again, well within the lease.
+      LOG_WARNING << "job " << job_.id << ": heartbeat failed: " << reply.status();
+      return;
+    }
+    if (!reply->owned) {
+      if (!lease_lost_.exchange(true)) {
+        LOG_WARNING << "job " << job_.id << ": the lease was lost; stopping without finishing";
+      }
+      cancel_.RequestCancel();
+    } else if (reply->cancel_requested) {
+      if (!cancel_requested_.exchange(true)) {
+        LOG_INFO << "job " << job_.id << ": cancel requested; stopping";
+      }
+      cancel_.RequestCancel();
+    }
+  }
+
+  // The cancel token's probe: a beat, then whether the stage should stop.
+  bool BeatAndCheckStop() {
+    Beat();
+    return lease_lost_.load() || cancel_requested_.load() || stop_requested_.load();
+  }
+
+  // ---- Inputs ----
+
+  // The job's options and workspace: options parsed again (the worker may be newer or older
+  // than the server that validated them), accepted photos, the job's folders, and output/
+  // without the half-written files of an interrupted run. Returns the finished report when
+  // the job cannot run.
+  std::optional<JobRunReport> PrepareInputs(Workspace* workspace, PipelineOptions* options) {
+    Result<PipelineOptions> parsed = ParsePipelineOptions(job_.options);
+    if (!parsed.ok()) return Fail("", "invalid options: " + parsed.status().message());
+    *options = *parsed;
+    if (options_.default_num_threads > 0 && !job_.options.contains("num_threads")) {
+      options->num_threads = options_.default_num_threads;
+    }
+
+    const Result<std::vector<JobImageRecord>> images = store_.ListImages(job_.id);
+    if (!images.ok()) {
+      if (images.status().code() == StatusCode::kNotFound) {
+        return Finish(JobRunOutcome::kLeaseLost, "", "the job was deleted");
+      }
+      return Fail("", "cannot read the job's photos: " + images.status().message());
+    }
+    Result<std::vector<InputImage>> photos = PhotosFromRecords(*images, layout_.InputDir(job_.id));
+    if (!photos.ok()) return Fail("", photos.status().message());
+    workspace->images = std::move(photos).value();
+    workspace->work_dir = layout_.WorkDir(job_.id);
+    workspace->output_dir = layout_.OutputDir(job_.id);
+    workspace->archive_path = layout_.ResultZip(job_.id);
+    for (const fs::path& dir : {workspace->work_dir, workspace->output_dir}) {
+      std::error_code ec;
+      fs::create_directories(dir, ec);
+      if (ec) return Fail("", "cannot create " + dir.string() + ": " + ec.message());
+    }
+    if (const int removed = RemoveInterruptedWrites(workspace->output_dir); removed > 0) {
+      LOG_WARNING << "removed " << removed
+                  << " half-written file(s) of an interrupted run from output/";
+    }
+    return std::nullopt;
+  }
+
+  // ---- The pipeline mirrored into the store ----
+
+  PipelineCallbacks StoreMirror() {
+    PipelineCallbacks callbacks;
+    callbacks.on_plan = [this](const std::vector<StagePlan>& plan) { OnPlan(plan); };
+    callbacks.on_stage_start = [this](const Stage& stage, double overall) {
+      OnStageStart(stage, overall);
+    };
+    callbacks.on_progress = [this](const Stage& stage, const ProgressUpdate& update,
+                                   double overall) { OnProgress(stage, update, overall); };
+    callbacks.on_stage_end = [this](const Stage&, const StageRecord& record, double overall) {
+      OnStageEnd(record, overall);
+    };
+    return callbacks;
+  }
+
+  // The store and the work folder must agree on what is finished. A stage the store lists
+  // without a complete marker on disk runs again (its output cannot be trusted); a marker the
+  // store does not know yet is recorded when the runner resumes the stage (OnStageEnd).
+  void OnPlan(const std::vector<StagePlan>& plan) {
+    for (const StagePlan& stage : plan) {
+      if (stage.finished_on_disk) resumed_from_disk_.insert(stage.name);
+      if (finished_in_store_.count(stage.name) > 0 && !stage.finished_on_disk) {
+        sink_.AddEvent({stage.name, LogLevel::kWarning,
+                        "stage " + Quote(stage.name) +
+                            " was recorded as finished but its output in work/" + stage.name +
+                            " is missing or incomplete; running it again",
+                        std::nullopt});
+      }
+    }
+  }
+
+  void OnStageStart(const Stage& stage, double overall) {
+    const std::string name(stage.Name());
+    const std::string title(stage.Title());
+    current_stage_ = name;
+    stage_started_ = Clock::now();
+    if (resumed_from_disk_.count(name) > 0) return;  // Reported when the runner skips it.
+    sink_.AddEvent({name, LogLevel::kInfo, "stage " + Quote(name) + " started: " + title, overall});
+    sink_.StageStarted(name, overall, {{"progress", 0.0}, {"title", title}, {"status", "running"}});
+    Moment("stage-started:" + name);
+  }
+
+  void OnProgress(const Stage& stage, const ProgressUpdate& update, double overall) {
+    const double seconds = std::chrono::duration<double>(Clock::now() - stage_started_).count();
+    sink_.StageProgress(std::string(stage.Name()), overall,
+                        {{"progress", update.fraction},
+                         {"done", update.done},
+                         {"total", update.total},
+                         {"message", update.message},
+                         {"seconds", seconds},
+                         {"memory_bytes", CurrentMemoryBytes()}});
+  }
+
+  // The stage's final figures, counts and event; and, for a resumable stage whose output is
+  // complete, MarkStageFinished (also for a stage resumed from disk that the store had not
+  // recorded, e.g. after a crash between the marker and the store write).
+  void OnStageEnd(const StageRecord& record, double overall) {
+    const bool success = record.status == StageStatus::kSuccess;
+    const JobCounts stage_counts = CountsOfStage(record);
+    counts_.Merge(stage_counts);
+    (record.resumed ? report_.resumed_stages : report_.run_stages).push_back(record.name);
+    if (success && !record.resumed) Moment("stage-done:" + record.name);
+    sink_.AddEvent(StageEndEvent(record, overall));
+    sink_.StageEnded(record.name, overall, StageEndPatch(record), stage_counts);
+    // Packaging (not resumable) runs every time and is not listed.
+    if (success && record.resumable &&
+        (!record.resumed || finished_in_store_.count(record.name) == 0)) {
+      const Status marked = sink_.MarkStageFinished(record.name, record.seconds);
+      if (!marked.ok() && !sink_.lease_lost()) {
+        // Not fatal: the marker on disk still lets the next run resume; the store catches
+        // up then (the resumed-stage case above).
+        LOG_WARNING << "cannot record stage " << record.name << " as finished: " << marked;
+      }
+    }
+  }
+
+  // The patch of the stage's entry in Job::stage_progress.
+  static nlohmann::json StageEndPatch(const StageRecord& record) {
+    const bool success = record.status == StageStatus::kSuccess;
+    nlohmann::json patch = {
+        {"status",
+         record.resumed ? std::string("resumed") : std::string(StageStatusName(record.status))},
+        {"seconds", record.seconds},
+        {"peak_memory_bytes", record.peak_memory_bytes}};
+    if (success) {
+      patch["progress"] = 1.0;
+      patch["summary"] = record.summary;
+    }
+    if (!record.message.empty()) patch["message"] = record.message;
+    return patch;
+  }
+
+  // The job event for the end of a stage: skipped, or how it ended with time and memory.
+  static NewEvent StageEndEvent(const StageRecord& record, double overall) {
+    const bool success = record.status == StageStatus::kSuccess;
+    if (record.resumed) {
+      return {record.name, LogLevel::kInfo,
+              "stage " + Quote(record.name) + " finished in an earlier run (" +
+                  FormatSeconds(record.seconds) + "); skipped",
+              overall};
+    }
+    std::string text = "stage " + Quote(record.name) + " " +
+                       std::string(StageStatusName(record.status)) + " after " +
+                       FormatSeconds(record.seconds) + ", peak memory " +
+                       FormatMiB(record.peak_memory_bytes);
+    LogLevel level = LogLevel::kInfo;
+    if (success && !record.summary.empty()) text += ": " + record.summary.dump();
+    if (!success) {
+      level = record.status == StageStatus::kCanceled ? LogLevel::kInfo : LogLevel::kError;
+      text += ": " + record.message;
+    }
+    return {record.name, level, text, overall};
+  }
+
+  // ---- Finishing ----
+
+  // Succeeded with the archive the packaging stage reports, once checked against the file.
+  JobRunReport FinishSucceeded(const PipelineResult& result) {
+    const StageRecord* packaging = nullptr;
+    for (const StageRecord& stage : result.stages) {
+      if (stage.package) packaging = &stage;
+    }
+    if (packaging == nullptr) {
+      return Fail(result.stages.empty() ? "" : result.stages.back().name,
+                  "the pipeline finished without writing result.zip");
+    }
+    const PackageResult& package = *packaging->package;
+    JobOutput output;
+    output.result_bytes = package.archive.archive_bytes;
+    output.result_sha256 = package.archive.archive_sha256;
+    output.counts = counts_;
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(package.archive_path, ec);
+    if (ec || static_cast<std::int64_t>(size) != output.result_bytes) {
+      return Fail(packaging->name,
+                  "result.zip is missing or does not have the size the packaging stage reported");
+    }
+    LOG_INFO << "job " << job_.id << " succeeded in " << FormatSeconds(result.seconds)
+             << ": result.zip " << output.result_bytes << " bytes";
+    Moment("before-finish");
+    return FinishWith(JobRunOutcome::kSucceeded, "", "",
+                      [&] { return store_.FinishSucceeded(job_.id, options_.worker_id, output); });
+  }
+
+  // The policy for a pipeline that did not succeed: a lost lease leaves the job alone; a
+  // client's cancel wins over a stop (it is what they asked for); a stopping worker gives
+  // the job back (even a failure may be the stop's doing); otherwise the job failed.
+  JobRunReport FinishUnsuccessful(const PipelineResult& result) {
+    const std::string& stage = result.failed_stage;
+    if (lease_lost_) return Finish(JobRunOutcome::kLeaseLost, stage, "");
+    if (cancel_requested_) {
+      LOG_INFO << "job " << job_.id << " canceled in stage " << stage;
+      return FinishWith(JobRunOutcome::kCanceled, stage, result.message,
+                        [&] { return store_.FinishCanceled(job_.id, options_.worker_id); });
+    }
+    if (stop_requested_) {
+      LOG_INFO << "job " << job_.id << ": worker stopping; giving the job back";
+      return FinishWith(JobRunOutcome::kReleased, stage, result.message,
+                        [&] { return store_.ReleaseJob(job_.id, options_.worker_id); });
+    }
+    if (result.status == StageStatus::kCanceled) {
+      return Fail(stage, "stage " + stage + " stopped without a cancel request: " + result.message);
+    }
+    LOG_WARNING << "job " << job_.id << " failed in stage " << stage << ": " << result.message;
+    return Fail(stage, result.message.empty() ? "failed" : result.message);
+  }
+
+  JobRunReport Fail(const std::string& stage, const std::string& message) {
+    return FinishWith(JobRunOutcome::kFailed, stage, message, [&] {
+      return store_.FinishFailed(job_.id, options_.worker_id, message, stage);
+    });
+  }
+
+  // Writes a final state through `write` (retried while the store is busy) and maps the
+  // store's answer to the outcome: not ours any more is kLeaseLost, other errors kStoreError.
+  template <typename Write>
+  JobRunReport FinishWith(JobRunOutcome outcome,
+                          std::string stage,
+                          std::string message,
+                          Write write) {
+    {
+      // A beat after the final write would find the job not ours and cry "lease lost".
+      std::lock_guard lock(beat_mutex_);
+      finishing_ = true;
+    }
+    sink_.Close();
+    if (lease_lost_) {
+      return Finish(JobRunOutcome::kLeaseLost, std::move(stage), "the lease was lost");
+    }
+    const auto answer = RetryStoreWrite(write);
+    const Status& status = StatusOf(answer);
+    if (status.ok()) return Finish(outcome, std::move(stage), std::move(message));
+    if (status.code() == StatusCode::kFailedPrecondition ||
+        status.code() == StatusCode::kNotFound) {
+      LOG_WARNING << "job " << job_.id << ": not ours any more: " << status;
+      return Finish(JobRunOutcome::kLeaseLost, std::move(stage), status.message());
+    }
+    LOG_ERROR << "job " << job_.id << ": cannot record the end of the job (" << status
+              << "); its lease will expire and it will run again";
+    return Finish(JobRunOutcome::kStoreError, std::move(stage), status.message());
+  }
+
+  JobRunReport Finish(JobRunOutcome outcome, std::string stage, std::string message) {
+    report_.outcome = outcome;
+    report_.stage = std::move(stage);
+    report_.message = std::move(message);
+    report_.seconds = timer_.ElapsedSeconds();
+    return report_;
+  }
+
+  void Moment(const std::string& name) {
+    if (options_.on_moment) options_.on_moment(name);
+  }
+
+  JobStore& store_;
+  const JobRunnerOptions& options_;
+  const DataLayout& layout_;
+  const std::atomic<bool>& stop_requested_;
+  const Job& job_;
+  CancelToken cancel_;
+  const Timer timer_;
+  JobRunReport report_;
+  std::atomic<bool> lease_lost_{false};
+  std::atomic<bool> cancel_requested_{false};
+  std::mutex beat_mutex_;
+  bool finishing_ = false;  // Guarded by beat_mutex_: no beats once the final write begins.
+  ProgressSink sink_;       // After the flags its lease-lost callback sets.
+  const std::set<std::string> finished_in_store_;
+  std::set<std::string> resumed_from_disk_;  // From the plan: stages the runner will skip.
+  std::string current_stage_;
+  Clock::time_point stage_started_ = Clock::now();
+  JobCounts counts_;
+};
+
+}  // namespace
+
 JobRunReport JobRunner::Run(const Job& job) {
-  const Timer timer;
-  JobRunReport report;
-  const std::string& worker = options_.worker_id;
   CancelToken cancel;
   {
     std::lock_guard lock(running_mutex_);
@@ -318,309 +706,11 @@ JobRunReport JobRunner::Run(const Job& job) {
   }
   // RequestStop may have come between the claim and here.
   if (stop_requested_) cancel.RequestCancel();
-
-  ProgressSink sink(store_, job.id, worker, options_.sink);
-  std::atomic<bool> lease_lost{false};
-  std::atomic<bool> cancel_requested{false};
-  sink.SetOnLeaseLost([&] {
-    lease_lost = true;
-    cancel.RequestCancel();
-  });
-
-  // One heartbeat: renews the lease and learns about a cancel request or a lost job.
-  std::mutex beat_mutex;
-  bool finishing = false;  // Guarded by beat_mutex: no beats once the final write begins.
-  auto beat = [&] {
-    std::lock_guard lock(beat_mutex);
-    if (finishing || lease_lost) return;
-    const Result<HeartbeatReply> reply = store_.Heartbeat(job.id, worker, options_.lease);
-    if (!reply.ok()) {
-      // A busy database: the next beat tries again, well within the lease.
-      LOG_WARNING << "job " << job.id << ": heartbeat failed: " << reply.status();
-      return;
-    }
-    if (!reply->owned) {
-      if (!lease_lost.exchange(true)) {
-        LOG_WARNING << "job " << job.id << ": the lease was lost; stopping without finishing";
-      }
-      cancel.RequestCancel();
-    } else if (reply->cancel_requested) {
-      if (!cancel_requested.exchange(true)) {
-        LOG_INFO << "job " << job.id << ": cancel requested; stopping";
-      }
-      cancel.RequestCancel();
-    }
-  };
-
-  auto moment = [this](const std::string& name) {
-    if (options_.on_moment) options_.on_moment(name);
-  };
-
-  // What the job's run leaves behind for the final decision.
-  std::string current_stage;
-  nlohmann::json counts = nlohmann::json::object();
-
-  auto finish = [&](JobRunOutcome outcome, std::string stage, std::string message) {
-    report.outcome = outcome;
-    report.stage = std::move(stage);
-    report.message = std::move(message);
-    report.seconds = timer.ElapsedSeconds();
-    std::lock_guard lock(running_mutex_);
-    running_job_id_.clear();
-    running_cancel_ = CancelToken();
-    return report;
-  };
-  // Writes a final state through `write` and maps the store's answer to the outcome.
-  auto finish_with = [&](JobRunOutcome outcome, std::string stage, std::string message,
-                         auto write) {
-    {
-      // A beat after the final write would find the job not ours and cry "lease lost".
-      std::lock_guard lock(beat_mutex);
-      finishing = true;
-    }
-    sink.Close();
-    if (lease_lost) {
-      return finish(JobRunOutcome::kLeaseLost, std::move(stage), "the lease was lost");
-    }
-    const auto answer = RetryStoreWrite(write);
-    const Status& status = StatusOf(answer);
-    if (status.ok()) return finish(outcome, std::move(stage), std::move(message));
-    if (status.code() == StatusCode::kFailedPrecondition ||
-        status.code() == StatusCode::kNotFound) {
-      LOG_WARNING << "job " << job.id << ": not ours any more: " << status;
-      return finish(JobRunOutcome::kLeaseLost, std::move(stage), status.message());
-    }
-    LOG_ERROR << "job " << job.id << ": cannot record the end of the job (" << status
-              << "); its lease will expire and it will run again";
-    return finish(JobRunOutcome::kStoreError, std::move(stage), status.message());
-  };
-  auto fail = [&](std::string stage, std::string message) {
-    return finish_with(JobRunOutcome::kFailed, stage, message,
-                       [&] { return store_.FinishFailed(job.id, worker, message, stage); });
-  };
-
-  try {
-    // Every log line of the job goes to the worker's log and, rate-limited, to the job's events.
-    auto previous_sink = std::make_shared<LogSink>(SetLogSink({}));
-    SetLogSink(*previous_sink);  // Only to learn it; ScopedLogSink replaces it next.
-    const std::string prefix = "[job " + job.id.substr(0, 8) + "] ";
-    ScopedLogSink log_sink([previous_sink, prefix, &sink](LogLevel level, std::string_view line) {
-      const std::string text = prefix + std::string(line);
-      if (*previous_sink) {
-        (*previous_sink)(level, text);
-      } else {
-        WriteStderrLine(level, text);
-      }
-      sink.AddLogLine(level, line);
-    });
-
-    const std::chrono::milliseconds interval =
-        options_.heartbeat_interval.count() > 0 ? options_.heartbeat_interval : options_.lease / 3;
-    cancel.SetProbe(
-        [&] {
-          beat();
-          return lease_lost.load() || cancel_requested.load() || stop_requested_.load();
-        },
-        options_.cancel_check_interval);
-    // Clears the probe (it refers to this frame) when Run leaves, whatever the path.
-    struct ProbeReset {
-      const CancelToken& token;
-      ~ProbeReset() { token.SetProbe({}); }
-    } probe_reset{cancel};
-    HeartbeatThread heartbeat(interval, [&] {
-      beat();
-      sink.Flush();
-    });
-
-    LOG_INFO << "running job " << job.id << " (" << job.image_count << " photos, run "
-             << job.attempts + 1 << " of at most " << job.max_attempts << ")";
-
-    // The options the server validated; parsed again here because the worker may be newer or
-    // older than the server that accepted them.
-    Result<PipelineOptions> options = ParsePipelineOptions(job.options);
-    if (!options.ok()) return fail("", "invalid options: " + options.status().message());
-    PipelineJob pipeline_job;
-    pipeline_job.options = *options;
-    if (options_.default_num_threads > 0 && !job.options.contains("num_threads")) {
-      pipeline_job.options.num_threads = options_.default_num_threads;
-    }
-
-    const Result<std::vector<JobImageRecord>> images = store_.ListImages(job.id);
-    if (!images.ok()) {
-      if (images.status().code() == StatusCode::kNotFound) {
-        return finish(JobRunOutcome::kLeaseLost, "", "the job was deleted");
-      }
-      return fail("", "cannot read the job's photos: " + images.status().message());
-    }
-    Result<std::vector<JobPhoto>> photos = PhotosFromRecords(*images, layout_.InputDir(job.id));
-    if (!photos.ok()) return fail("", photos.status().message());
-    pipeline_job.photos = std::move(photos).value();
-    pipeline_job.work_dir = layout_.WorkDir(job.id);
-    pipeline_job.output_dir = layout_.OutputDir(job.id);
-    pipeline_job.archive_path = layout_.ResultZip(job.id);
-    for (const fs::path& dir : {pipeline_job.work_dir, pipeline_job.output_dir}) {
-      std::error_code ec;
-      fs::create_directories(dir, ec);
-      if (ec) return fail("", "cannot create " + dir.string() + ": " + ec.message());
-    }
-    if (const int removed = RemoveInterruptedWrites(pipeline_job.output_dir); removed > 0) {
-      LOG_WARNING << "removed " << removed
-                  << " half-written file(s) of an interrupted run from output/";
-    }
-
-    const std::set<std::string> finished_in_store(job.finished_stages.begin(),
-                                                  job.finished_stages.end());
-    Clock::time_point stage_started = Clock::now();
-
-    PipelineDriverCallbacks callbacks;
-    callbacks.on_plan = [&](const std::vector<StagePlan>& plan) {
-      // The store and the work folder must agree on what is finished. A stage the store lists
-      // without a complete marker on disk runs again (its output cannot be trusted); a marker
-      // the store does not know yet is recorded when the runner resumes the stage.
-      for (const StagePlan& stage : plan) {
-        if (finished_in_store.count(stage.name) > 0 && !stage.finished_on_disk) {
-          sink.AddEvent({stage.name, LogLevel::kWarning,
-                         "stage " + Quote(stage.name) +
-                             " was recorded as finished but its output in work/" + stage.name +
-                             " is missing or incomplete; running it again",
-                         std::nullopt});
-        }
-      }
-    };
-    callbacks.on_stage_start = [&](const StagePlan& stage, double overall) {
-      current_stage = stage.name;
-      stage_started = Clock::now();
-      if (stage.finished_on_disk) return;  // Reported when the runner skips it.
-      sink.AddEvent({stage.name, LogLevel::kInfo,
-                     "stage " + Quote(stage.name) + " started: " + stage.title, overall});
-      sink.StageStarted(stage.name, overall,
-                        {{"progress", 0.0}, {"title", stage.title}, {"status", "running"}});
-      moment("stage-started:" + stage.name);
-    };
-    callbacks.on_progress = [&](const StagePlan& stage, double fraction, std::size_t done,
-                                std::size_t total, const std::string& message, double overall) {
-      const double seconds = std::chrono::duration<double>(Clock::now() - stage_started).count();
-      sink.StageProgress(stage.name, overall,
-                         {{"progress", fraction},
-                          {"done", done},
-                          {"total", total},
-                          {"message", message},
-                          {"seconds", seconds},
-                          {"memory_bytes", CurrentMemoryBytes()}});
-    };
-    callbacks.on_stage_end = [&](const StageOutcome& outcome, double overall) {
-      nlohmann::json stage_counts =
-          outcome.success ? CountsFromStageSummary(outcome.name, outcome.summary) : nullptr;
-      if (stage_counts.is_object()) counts.merge_patch(stage_counts);
-      nlohmann::json patch = {{"status", outcome.resumed ? "resumed" : outcome.status},
-                              {"seconds", outcome.seconds},
-                              {"peak_memory_bytes", outcome.peak_memory_bytes}};
-      if (outcome.success) {
-        patch["progress"] = 1.0;
-        patch["summary"] = outcome.summary;
-      }
-      if (!outcome.message.empty()) patch["message"] = outcome.message;
-
-      std::string text;
-      LogLevel level = LogLevel::kInfo;
-      if (outcome.resumed) {
-        report.resumed_stages.push_back(outcome.name);
-        text = "stage " + Quote(outcome.name) + " finished in an earlier run (" +
-               FormatSeconds(outcome.seconds) + "); skipped";
-      } else {
-        report.run_stages.push_back(outcome.name);
-        text = "stage " + Quote(outcome.name) + " " + outcome.status + " after " +
-               FormatSeconds(outcome.seconds) + ", peak memory " +
-               FormatMiB(outcome.peak_memory_bytes);
-        if (outcome.success && !outcome.summary.empty()) text += ": " + outcome.summary.dump();
-        if (!outcome.success) {
-          level = outcome.status == "canceled" ? LogLevel::kInfo : LogLevel::kError;
-          text += ": " + outcome.message;
-        }
-      }
-      if (outcome.success && !outcome.resumed) moment("stage-done:" + outcome.name);
-      sink.AddEvent({outcome.name, level, text, overall});
-      sink.StageEnded(outcome.name, overall, std::move(patch), stage_counts);
-      // Resumable stages whose output is complete become resumable for later runs in the
-      // store too. Packaging (not resumable) runs every time and is not listed.
-      if (outcome.success && outcome.resumable &&
-          (!outcome.resumed || finished_in_store.count(outcome.name) == 0)) {
-        const Status marked = sink.MarkStageFinished(outcome.name, outcome.seconds);
-        if (!marked.ok() && !sink.lease_lost()) {
-          // Not fatal: the marker on disk still lets the next run resume; the store catches
-          // up then (the resumed-stage case above).
-          LOG_WARNING << "cannot record stage " << outcome.name << " as finished: " << marked;
-        }
-      }
-    };
-
-    const PipelineOutcome outcome =
-        RunJobPipeline(pipeline_job, options_.make_stages, cancel, callbacks);
-    // Final heartbeat: the lease must still be ours (and long enough) for the last writes.
-    beat();
-
-    switch (outcome.status) {
-      case PipelineOutcomeStatus::kSuccess: {
-        // The packaging stage reports the archive it wrote; check it is the file on disk.
-        const StageOutcome* packaging = nullptr;
-        for (const StageOutcome& stage : outcome.stages) {
-          if (stage.summary.contains("archive_sha256") && stage.summary.contains("archive_bytes"))
-            packaging = &stage;
-        }
-        if (packaging == nullptr) {
-          return fail(outcome.stages.empty() ? "" : outcome.stages.back().name,
-                      "the pipeline finished without writing result.zip");
-        }
-        JobOutput output;
-        output.result_bytes = packaging->summary["archive_bytes"].get<std::int64_t>();
-        output.result_sha256 = packaging->summary["archive_sha256"].get<std::string>();
-        output.counts = counts;
-        std::error_code ec;
-        const std::uintmax_t size = fs::file_size(pipeline_job.archive_path, ec);
-        if (ec || static_cast<std::int64_t>(size) != output.result_bytes) {
-          return fail(packaging->name,
-                      "result.zip is missing or does not have the size the "
-                      "packaging stage reported");
-        }
-        LOG_INFO << "job " << job.id << " succeeded in " << FormatSeconds(outcome.seconds)
-                 << ": result.zip " << output.result_bytes << " bytes";
-        moment("before-finish");
-        return finish_with(JobRunOutcome::kSucceeded, "", "",
-                           [&] { return store_.FinishSucceeded(job.id, worker, output); });
-      }
-      case PipelineOutcomeStatus::kCanceled:
-      case PipelineOutcomeStatus::kFailed: {
-        if (lease_lost) return finish(JobRunOutcome::kLeaseLost, outcome.failed_stage, "");
-        const bool canceled = outcome.status == PipelineOutcomeStatus::kCanceled;
-        if (cancel_requested) {
-          // A client's cancel wins over a stop: it is what they asked for.
-          LOG_INFO << "job " << job.id << " canceled in stage " << outcome.failed_stage;
-          return finish_with(JobRunOutcome::kCanceled, outcome.failed_stage, outcome.message,
-                             [&] { return store_.FinishCanceled(job.id, worker); });
-        }
-        if (stop_requested_) {
-          // The worker is stopping. Even a failure may be the stop's doing (a stage that
-          // reports cancellation as an error); the next worker finds out.
-          LOG_INFO << "job " << job.id << ": worker stopping; giving the job back";
-          return finish_with(JobRunOutcome::kReleased, outcome.failed_stage, outcome.message,
-                             [&] { return store_.ReleaseJob(job.id, worker); });
-        }
-        if (canceled) {
-          return fail(outcome.failed_stage,
-                      "stage " + outcome.failed_stage +
-                          " stopped without a cancel request: " + outcome.message);
-        }
-        LOG_WARNING << "job " << job.id << " failed in stage " << outcome.failed_stage << ": "
-                    << outcome.message;
-        return fail(outcome.failed_stage, outcome.message.empty() ? "failed" : outcome.message);
-      }
-    }
-    return fail(current_stage, "unknown pipeline outcome");
-  } catch (const std::exception& e) {
-    return fail(current_stage, std::string("internal error in the worker: ") + e.what());
-  } catch (...) {
-    return fail(current_stage, "internal error in the worker: unknown exception");
-  }
+  JobRunReport report = JobRun(store_, options_, layout_, stop_requested_, job, cancel).Execute();
+  std::lock_guard lock(running_mutex_);
+  running_job_id_.clear();
+  running_cancel_ = CancelToken();
+  return report;
 }
 
 }  // namespace reconduit

@@ -10,23 +10,25 @@
 //      the stage within about that interval;
 //   3. removes from output/ the half-written files of an interrupted earlier run (temporary
 //      files of atomic writes, which packaging would otherwise deliver), then
-//      runs the pipeline (RunJobPipeline), resuming after the stages whose work/<stage>/
-//      stage.json markers say they finished, and mirrors it into the store: stage and progress
-//      (throttled), per-stage progress, time and memory, counts, MarkStageFinished for each
-//      resumable stage whose output is complete (also for stages resumed from disk that the
-//      store had not recorded, e.g. after a crash between the marker and the store write), and
-//      events for stage starts and ends and the job's log lines (rate-limited);
-//   4. finishes the job: succeeded with result.zip's size and SHA-256 (from the packaging
-//      stage) and the counts; failed with the stage and the message; canceled when a client
-//      asked; released back to the queue when the worker is stopping (RequestStop); nothing
-//      at all when the lease was lost, since another worker may own the job by then.
+//      runs the pipeline (RunJobPipeline over core RunPipeline), resuming after the stages
+//      whose work/<stage>/stage.json markers say they finished, and mirrors it into the store:
+//      stage and progress (throttled), per-stage progress, time and memory, counts,
+//      MarkStageFinished for each resumable stage whose output is complete (also for stages
+//      resumed from disk that the store had not recorded, e.g. after a crash between the
+//      marker and the store write), and events for stage starts and ends and the job's log
+//      lines (rate-limited);
+//   4. finishes the job: succeeded with result.zip's size and SHA-256 (the packaging stage's
+//      PackageResult) and the counts; failed with the stage and the message; canceled when a
+//      client asked; released back to the queue when the worker is stopping (RequestStop);
+//      nothing at all when the lease was lost, since another worker may own the job by then.
 //
 // A failing or throwing job never escapes Run(): every exception becomes a failed job.
 //
 // Logging: while a job runs, Run() replaces the process-wide log sink (SetLogSink) with one
-// that forwards every line to the previous sink prefixed with the job id and records it as a
-// job event (rate-limited). A process therefore runs one job at a time; this is the worker's
-// model (one job per process, several processes side by side).
+// that forwards every line to the previous sink (by default core/util's, so the line layout is
+// the process's one) with the job id at the head of the message, and records it as a job event
+// (rate-limited). A process therefore runs one job at a time; this is the worker's model (one
+// job per process, several processes side by side).
 #ifndef RECONDUIT_WORKER_JOB_RUNNER_H_
 #define RECONDUIT_WORKER_JOB_RUNNER_H_
 
@@ -112,12 +114,14 @@ struct JobRunReport {
 // component (never a path) and made unique ("a.jpg", "a (2).jpg"); an empty name falls back
 // to the stored name. kInvalidArgument for a stored name that is not a plain file name (the
 // store refuses those already) or when no photo is accepted.
-Result<std::vector<JobPhoto>> PhotosFromRecords(const std::vector<JobImageRecord>& records,
-                                                const std::filesystem::path& input_dir);
+Result<std::vector<InputImage>> PhotosFromRecords(const std::vector<JobImageRecord>& records,
+                                                  const std::filesystem::path& input_dir);
 
-// Counts for Job::counts from a finished stage's summary (e.g. ingest's "accepted" becomes
-// "images", features' "features" stays "features"); null when the stage has none.
-nlohmann::json CountsFromStageSummary(std::string_view stage, const nlohmann::json& summary);
+// The counts a successful stage contributes to Job::counts: its summary's figures under their
+// JobCounts names (ingest's "accepted" becomes images, matching's "pairs" matched_pairs, ...;
+// registered, points, faces and models from any stage) and, for packaging, the number of
+// files of its archive. Empty for a stage that did not succeed or has none.
+JobCounts CountsOfStage(const StageRecord& record);
 
 class JobRunner {
  public:

@@ -147,9 +147,9 @@ TEST_F(JobRunnerTest, RealStagesSucceedWithResultArchive) {
   // Packaging is not resumable and is not listed: a rerun packs again.
   EXPECT_EQ(job.finished_stages,
             std::vector<std::string>(report.run_stages.begin(), report.run_stages.end() - 1));
-  EXPECT_EQ(job.counts.value("images", -1), kPhotos) << job.counts.dump();
-  EXPECT_GT(job.counts.value("features", 0), 100) << job.counts.dump();
-  EXPECT_GT(job.counts.value("matched_pairs", 0), 0) << job.counts.dump();
+  EXPECT_EQ(job.counts.images.value_or(-1), kPhotos) << job.counts.ToJson().dump();
+  EXPECT_GT(job.counts.features.value_or(0), 100) << job.counts.ToJson().dump();
+  EXPECT_GT(job.counts.matched_pairs.value_or(0), 0) << job.counts.ToJson().dump();
   for (const std::string& stage : report.run_stages) {
     ASSERT_TRUE(job.stage_progress.contains(stage)) << job.stage_progress.dump();
     EXPECT_DOUBLE_EQ(job.stage_progress[stage].value("progress", 0.0), 1.0) << stage;
@@ -263,7 +263,7 @@ TEST_F(JobRunnerTest, ResumeSkipsStagesFinishedEarlier) {
   const Job job = Get(id);
   EXPECT_EQ(job.state, JobState::kSucceeded);
   EXPECT_THAT(job.finished_stages, ElementsAre("ingest", "features", "pairs", "matching"));
-  EXPECT_EQ(job.counts.value("images", -1), kPhotos) << "counts of resumed stages are kept";
+  EXPECT_EQ(job.counts.images.value_or(-1), kPhotos) << "counts of resumed stages are kept";
 
   const std::vector<std::string> events = EventMessages(id);
   EXPECT_THAT(events, Contains(HasSubstr("ingest|stage 'ingest' finished in an earlier run")));
@@ -424,7 +424,7 @@ TEST(PhotosFromRecords, AcceptedPhotosWithSafeUniqueNames) {
   records[2] = {.index = 1, .original_name = "", .stored_name = "0002.jpg"};
   records[3] = {.index = 3, .original_name = "b.jpg", .stored_name = "0004.jpg"};
   records[3].status = ImageStatus::kRejected;
-  const Result<std::vector<JobPhoto>> photos = PhotosFromRecords(records, "/in");
+  const Result<std::vector<InputImage>> photos = PhotosFromRecords(records, "/in");
   ASSERT_TRUE(photos.ok()) << photos.status();
   ASSERT_EQ(photos->size(), 3u);
   EXPECT_EQ((*photos)[0].path, fs::path("/in/0001.jpg"));
@@ -439,12 +439,33 @@ TEST(PhotosFromRecords, AcceptedPhotosWithSafeUniqueNames) {
   EXPECT_FALSE(PhotosFromRecords(records, "/in").ok());
 }
 
-TEST(CountsFromStageSummary, MapsKnownFields) {
-  EXPECT_EQ(CountsFromStageSummary("ingest", {{"accepted", 5}, {"rejected", 1}, {"images", 6}}),
-            (nlohmann::json{{"images", 5}, {"rejected_images", 1}}));
-  EXPECT_EQ(CountsFromStageSummary("sfm", {{"registered", 12}, {"points", 3400}}),
+// A successful stage's record with `summary`.
+StageRecord Finished(std::string name, nlohmann::json summary) {
+  StageRecord record;
+  record.name = std::move(name);
+  record.status = StageStatus::kSuccess;
+  record.summary = std::move(summary);
+  return record;
+}
+
+TEST(CountsOfStage, MapsKnownFields) {
+  EXPECT_EQ(
+      CountsOfStage(Finished("ingest", {{"accepted", 5}, {"rejected", 1}, {"images", 6}})).ToJson(),
+      (nlohmann::json{{"images", 5}, {"rejected_images", 1}}));
+  EXPECT_EQ(CountsOfStage(Finished("sfm", {{"registered", 12}, {"points", 3400}})).ToJson(),
             (nlohmann::json{{"registered", 12}, {"points", 3400}}));
-  EXPECT_TRUE(CountsFromStageSummary("pairs", {{"method", "all"}}).is_null());
+  EXPECT_TRUE(CountsOfStage(Finished("pairs", {{"method", "all"}})).empty());
+}
+
+TEST(CountsOfStage, FailedStagesCountNothingAndPackagingCountsItsFiles) {
+  StageRecord failed = Finished("ingest", {{"accepted", 5}});
+  failed.status = StageStatus::kFailed;
+  EXPECT_TRUE(CountsOfStage(failed).empty());
+
+  StageRecord package = Finished("package", {{"files", 99}});
+  package.package = PackageResult{"/r.zip", {}};
+  package.package->archive.files.resize(3);
+  EXPECT_EQ(CountsOfStage(package).ToJson(), (nlohmann::json{{"result_files", 3}}));
 }
 
 }  // namespace

@@ -97,7 +97,7 @@ void ProgressSink::StageStarted(const std::string& stage,
   }
   std::lock_guard write(write_mutex_);
   WriteEventsLocked();
-  WriteProgressLocked(/*force=*/true, nullptr);
+  WriteProgressLocked(/*force=*/true, JobCounts());
 }
 
 void ProgressSink::StageProgress(const std::string& stage,
@@ -118,13 +118,13 @@ void ProgressSink::StageProgress(const std::string& stage,
   std::unique_lock write(write_mutex_, std::try_to_lock);
   if (!write.owns_lock()) return;
   WriteEventsLocked();
-  WriteProgressLocked(/*force=*/false, nullptr);
+  WriteProgressLocked(/*force=*/false, JobCounts());
 }
 
 void ProgressSink::StageEnded(const std::string& stage,
                               double overall,
                               nlohmann::json stage_patch,
-                              nlohmann::json counts) {
+                              const JobCounts& counts) {
   {
     std::lock_guard lock(state_mutex_);
     overall_ = std::clamp(std::max(overall_, overall), 0.0, 1.0);
@@ -181,7 +181,7 @@ void ProgressSink::Flush() {
   try {
     std::lock_guard write(write_mutex_);
     WriteEventsLocked();
-    WriteProgressLocked(/*force=*/false, nullptr);
+    WriteProgressLocked(/*force=*/false, JobCounts());
   } catch (const std::exception& e) {
     LOG_WARNING << "job " << job_id_ << ": cannot write progress: " << e.what();
   }
@@ -191,16 +191,16 @@ void ProgressSink::Close() {
   try {
     std::lock_guard write(write_mutex_);
     WriteEventsLocked();
-    WriteProgressLocked(/*force=*/true, nullptr);
+    WriteProgressLocked(/*force=*/true, JobCounts());
     closed_ = true;
   } catch (const std::exception& e) {
     LOG_WARNING << "job " << job_id_ << ": cannot write progress: " << e.what();
   }
 }
 
-void ProgressSink::WriteProgressLocked(bool force, const nlohmann::json& counts) {
+void ProgressSink::WriteProgressLocked(bool force, const JobCounts& counts) {
   if (lease_lost_ || closed_) return;
-  if (force && counts.is_null()) {
+  if (force && counts.empty()) {
     std::lock_guard lock(state_mutex_);
     if (!progress_pending_) return;  // Nothing new to say.
   }

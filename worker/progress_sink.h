@@ -81,11 +81,11 @@ class ProgressSink {
   // write (or at the next Flush). Overall progress never goes backwards within a run.
   void StageProgress(const std::string& stage, double overall, nlohmann::json stage_patch);
 
-  // A stage ended: writes its final figures and the counts patch (may be null) at once.
+  // A stage ended: writes its final figures and its counts (may be empty) at once.
   void StageEnded(const std::string& stage,
                   double overall,
                   nlohmann::json stage_patch,
-                  nlohmann::json counts);
+                  const JobCounts& counts);
 
   // Records that `stage`'s output is complete (JobStore::MarkStageFinished), after the queued
   // events. @return the store's answer.
@@ -120,7 +120,7 @@ class ProgressSink {
   // (outside every lock) for other failures, empty when none.
   std::string Note(const Status& status, std::string_view what);
   // Writes the pending progress when `force` or due. Caller holds write_mutex_.
-  void WriteProgressLocked(bool force, const nlohmann::json& counts);
+  void WriteProgressLocked(bool force, const JobCounts& counts);
   // Writes queued events. Caller holds write_mutex_.
   void WriteEventsLocked();
   void LogOutsideLocks(const std::string& warning);

@@ -108,6 +108,81 @@ std::vector<StageRecord> ReadFinishedStages(const Workspace& workspace,
   return records;
 }
 
+namespace {
+
+// The plan of `stages` when the first `finished` of them resume.
+std::vector<StagePlan> MakePlan(const std::vector<std::unique_ptr<Stage>>& stages,
+                                std::size_t finished) {
+  std::vector<StagePlan> plan;
+  for (std::size_t i = 0; i < stages.size(); ++i) {
+    plan.push_back({std::string(stages[i]->Name()), std::string(stages[i]->Title()),
+                    stages[i]->Weight(), stages[i]->Resumable(), i < finished});
+  }
+  return plan;
+}
+
+// The run's overall fraction at each stage boundary: [i] when stage i starts, [i + 1] when it
+// has succeeded (the stages' weights, normalised; all 0 when the weights add up to 0).
+std::vector<double> StageBoundaries(const std::vector<StagePlan>& plan) {
+  double total = 0.0;
+  for (const StagePlan& stage : plan) total += stage.weight;
+  std::vector<double> boundaries{0.0};
+  double done = 0.0;
+  for (const StagePlan& stage : plan) {
+    done += stage.weight;
+    boundaries.push_back(total > 0 ? done / total : 0.0);
+  }
+  return boundaries;
+}
+
+// Runs `stage` in its (fresh) folder: its exceptions become the record's status, time and peak
+// memory are recorded, and stage.json is written when it succeeded.
+StageRecord RunStage(const Stage& stage, StageContext& context, const PipelineOptions& options) {
+  const std::string name(stage.Name());
+  LOG_INFO << "stage " << name << ": " << stage.Title();
+  const Timer timer;
+  StageRecord record;
+  record.name = name;
+  record.resumable = stage.Resumable();
+  record.options = UsedOptionValues(stage, options);
+  try {
+    StageResult stage_result = stage.Run(context);
+    record.status = stage_result.status;
+    record.message = std::move(stage_result.message);
+    record.summary = std::move(stage_result.summary);
+    record.package = std::move(stage_result.package);
+  } catch (const CanceledError&) {
+    record.status = StageStatus::kCanceled;
+    record.message = "canceled during stage " + name;
+  } catch (const std::exception& e) {
+    record.status = StageStatus::kFailed;
+    record.message = e.what();
+  }
+  record.seconds = timer.ElapsedSeconds();
+  record.peak_memory_bytes = PeakMemoryBytes();
+
+  if (record.status == StageStatus::kSuccess) {
+    context.progress.Finish();  // The overall figure reaches this stage's end even if throttled.
+    const Status written =
+        WriteFileAtomically(context.stage_dir / kMarker, record.ToJson().dump(2) + "\n");
+    if (!written.ok()) {
+      record.status = StageStatus::kFailed;
+      record.message = "cannot record the end of the stage: " + written.message();
+    }
+  }
+  LOG_INFO << "stage " << name << ": " << StageStatusName(record.status) << " in " << record.seconds
+           << " s" << (record.message.empty() ? "" : ": ") << record.message;
+  return record;
+}
+
+}  // namespace
+
+std::vector<StagePlan> PlanPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
+                                    const Workspace& workspace,
+                                    const PipelineOptions& options) {
+  return MakePlan(stages, ReadFinishedStages(workspace, stages, options).size());
+}
+
 PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
                            const Workspace& workspace,
                            const PipelineOptions& options,
@@ -117,11 +192,6 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
   THROW_CHECK(options.Check(&error)) << error;
   const Timer total_timer;
   PipelineResult result;
-
-  double total_weight = 0.0;
-  for (const auto& stage : stages) total_weight += stage->Weight();
-  double weight_done = 0.0;
-
   auto finish = [&](StageStatus status, std::string failed_stage, std::string message) {
     result.status = status;
     result.failed_stage = std::move(failed_stage);
@@ -131,30 +201,29 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
   };
 
   // A stage resumes only if every stage before it did, since it consumed their outputs.
-  bool may_resume = true;
-  for (const auto& stage_ptr : stages) {
-    const Stage& stage = *stage_ptr;
-    const std::string name(stage.Name());
+  std::vector<StageRecord> finished = ReadFinishedStages(workspace, stages, options);
+  const std::vector<StagePlan> plan = MakePlan(stages, finished.size());
+  const std::vector<double> boundaries = StageBoundaries(plan);
+  if (callbacks.on_plan) callbacks.on_plan(plan);
+
+  for (std::size_t i = 0; i < stages.size(); ++i) {
+    const Stage& stage = *stages[i];
+    const std::string& name = plan[i].name;
     const fs::path stage_dir = workspace.StageDir(name);
-    if (callbacks.on_stage_start) callbacks.on_stage_start(stage);
+    if (callbacks.on_stage_start) callbacks.on_stage_start(stage, boundaries[i]);
 
-    if (!stage.Resumable()) may_resume = false;
-    if (may_resume) {
-      if (auto record = ReadMarker(stage, stage_dir, options)) {
-        record->resumed = true;
-        LOG_INFO << "stage " << name << ": finished in an earlier run, resuming after it";
-        weight_done += stage.Weight();
-        if (callbacks.on_stage_end) callbacks.on_stage_end(stage, *record);
-        result.stages.push_back(std::move(*record));
-        continue;
-      }
-      may_resume = false;
+    if (i < finished.size()) {
+      StageRecord& record = finished[i];
+      record.resumed = true;
+      record.resumable = stage.Resumable();
+      LOG_INFO << "stage " << name << ": finished in an earlier run, resuming after it";
+      if (callbacks.on_stage_end) callbacks.on_stage_end(stage, record, boundaries[i + 1]);
+      result.stages.push_back(std::move(record));
+      continue;
     }
-
     if (cancel.IsCanceled()) {
       return finish(StageStatus::kCanceled, name, "canceled before stage " + name);
     }
-
     std::error_code ec;
     fs::remove_all(stage_dir, ec);  // Outputs of an interrupted earlier attempt.
     fs::create_directories(stage_dir, ec);
@@ -163,52 +232,21 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
                     "cannot create " + stage_dir.string() + ": " + ec.message());
     }
 
-    const double weight_before = weight_done;
+    const double start = boundaries[i];
+    const double end = boundaries[i + 1];
     Progress progress([&](const ProgressUpdate& update) {
-      if (!callbacks.on_progress) return;
-      const double overall =
-          total_weight > 0 ? (weight_before + stage.Weight() * update.fraction) / total_weight : 0;
-      callbacks.on_progress(stage, update, overall);
-    });
-
-    LOG_INFO << "stage " << name << ": " << stage.Title();
-    const Timer timer;
-    StageRecord record;
-    record.name = name;
-    record.options = UsedOptionValues(stage, options);
-    StageContext context{workspace, options, progress, cancel, result.stages, stage_dir};
-    try {
-      StageResult stage_result = stage.Run(context);
-      record.status = stage_result.status;
-      record.message = std::move(stage_result.message);
-      record.summary = std::move(stage_result.summary);
-    } catch (const CanceledError&) {
-      record.status = StageStatus::kCanceled;
-      record.message = "canceled during stage " + name;
-    } catch (const std::exception& e) {
-      record.status = StageStatus::kFailed;
-      record.message = e.what();
-    }
-    record.seconds = timer.ElapsedSeconds();
-    record.peak_memory_bytes = PeakMemoryBytes();
-
-    if (record.status == StageStatus::kSuccess) {
-      progress.Finish();  // The overall figure reaches this stage's end even if throttled.
-      const Status written =
-          WriteFileAtomically(stage_dir / kMarker, record.ToJson().dump(2) + "\n");
-      if (!written.ok()) {
-        record.status = StageStatus::kFailed;
-        record.message = "cannot record the end of the stage: " + written.message();
+      if (callbacks.on_progress) {
+        callbacks.on_progress(stage, update, start + (end - start) * update.fraction);
       }
-    }
-    LOG_INFO << "stage " << name << ": " << StageStatusName(record.status) << " in "
-             << record.seconds << " s" << (record.message.empty() ? "" : ": ") << record.message;
-    if (callbacks.on_stage_end) callbacks.on_stage_end(stage, record);
+    });
+    StageContext context{workspace, options, progress, cancel, result.stages, stage_dir};
+    StageRecord record = RunStage(stage, context, options);
+    const bool succeeded = record.status == StageStatus::kSuccess;
+    if (callbacks.on_stage_end) callbacks.on_stage_end(stage, record, succeeded ? end : start);
     const StageStatus status = record.status;
     std::string message = record.message;
     result.stages.push_back(std::move(record));
-    if (status != StageStatus::kSuccess) return finish(status, name, std::move(message));
-    weight_done += stage.Weight();
+    if (!succeeded) return finish(status, name, std::move(message));
   }
   return finish(StageStatus::kSuccess, "", "");
 }

@@ -83,7 +83,7 @@ TEST_F(RunnerTest, RunsAllStagesInOrderAndReportsProgress) {
   callbacks.on_progress = [&](const Stage&, const ProgressUpdate&, double o) {
     overall.push_back(o);
   };
-  callbacks.on_stage_end = [&](const Stage& s, const StageRecord&) {
+  callbacks.on_stage_end = [&](const Stage& s, const StageRecord&, double) {
     ended.emplace_back(s.Name());
   };
   const PipelineResult result = RunPipeline(Stages(ToyStage::Behaviour::kSucceed), workspace_,
@@ -223,6 +223,73 @@ TEST_F(RunnerTest, NonResumableStageRunsEveryTimeAndSoDoesWhatFollows) {
   EXPECT_EQ(runs_[0], 1);
   EXPECT_EQ(runs_[1], 2);
   EXPECT_EQ(runs_[2], 2);
+}
+
+TEST_F(RunnerTest, AnnouncesThePlanAndTheOverallFigureAtStageBoundaries) {
+  auto stages = [&] {
+    std::vector<std::unique_ptr<Stage>> s;
+    s.push_back(std::make_unique<ToyStage>("a", ToyStage::Behaviour::kSucceed, &runs_[0]));
+    s.push_back(std::make_unique<ToyStage>("b", ToyStage::Behaviour::kSucceed, &runs_[1], false));
+    return s;
+  };
+  RunPipeline(stages(), workspace_, options_, CancelToken());
+
+  std::vector<StagePlan> plan;
+  std::vector<std::pair<std::string, double>> starts, ends;
+  std::vector<StageRecord> records;
+  PipelineCallbacks callbacks;
+  callbacks.on_plan = [&](const std::vector<StagePlan>& p) { plan = p; };
+  callbacks.on_stage_start = [&](const Stage& s, double overall) {
+    EXPECT_FALSE(plan.empty()) << "the plan comes before the first stage";
+    starts.emplace_back(s.Name(), overall);
+  };
+  callbacks.on_stage_end = [&](const Stage& s, const StageRecord& record, double overall) {
+    ends.emplace_back(s.Name(), overall);
+    records.push_back(record);
+  };
+  const PipelineResult result =
+      RunPipeline(stages(), workspace_, options_, CancelToken(), callbacks);
+  EXPECT_EQ(result.status, StageStatus::kSuccess);
+
+  // a resumes; b (not resumable) runs again.
+  ASSERT_EQ(plan.size(), 2u);
+  EXPECT_EQ(plan[0].name, "a");
+  EXPECT_EQ(plan[0].title, "Toy");
+  EXPECT_TRUE(plan[0].finished_on_disk);
+  EXPECT_TRUE(plan[0].resumable);
+  EXPECT_FALSE(plan[1].finished_on_disk);
+  EXPECT_FALSE(plan[1].resumable);
+  // Equal weights: a is the first half of the run, b the second.
+  EXPECT_THAT(starts, ::testing::ElementsAre(std::pair<std::string, double>("a", 0.0),
+                                             std::pair<std::string, double>("b", 0.5)));
+  EXPECT_THAT(ends, ::testing::ElementsAre(std::pair<std::string, double>("a", 0.5),
+                                           std::pair<std::string, double>("b", 1.0)));
+  ASSERT_EQ(records.size(), 2u);
+  EXPECT_TRUE(records[0].resumed);
+  EXPECT_TRUE(records[0].resumable);
+  EXPECT_FALSE(records[1].resumed);
+  EXPECT_FALSE(records[1].resumable);
+  EXPECT_FALSE(records[1].package.has_value()) << "only packaging hands over an archive";
+
+  // PlanPipeline says the same without running anything.
+  const std::vector<StagePlan> planned = PlanPipeline(stages(), workspace_, options_);
+  ASSERT_EQ(planned.size(), 2u);
+  EXPECT_TRUE(planned[0].finished_on_disk);
+  EXPECT_FALSE(planned[1].finished_on_disk);
+  EXPECT_EQ(runs_[0], 1);
+  EXPECT_EQ(runs_[1], 2);
+}
+
+TEST_F(RunnerTest, AFailedStageEndsAtTheFigureItStartedFrom) {
+  std::vector<double> ends;
+  PipelineCallbacks callbacks;
+  callbacks.on_stage_end = [&](const Stage&, const StageRecord&, double overall) {
+    ends.push_back(overall);
+  };
+  RunPipeline(Stages(ToyStage::Behaviour::kThrow), workspace_, options_, CancelToken(), callbacks);
+  ASSERT_EQ(ends.size(), 2u);
+  EXPECT_NEAR(ends[0], 1.0 / 3.0, 1e-12);
+  EXPECT_NEAR(ends[1], 1.0 / 3.0, 1e-12) << "b failed: the figure stays at its start";
 }
 
 TEST_F(RunnerTest, InvalidOptionsThrow) {

@@ -8,6 +8,7 @@
 #ifndef RECONDUIT_CORE_PIPELINE_STAGE_H_
 #define RECONDUIT_CORE_PIPELINE_STAGE_H_
 
+#include "core/io/result_archive.h"
 #include "core/options/pipeline_options.h"
 #include "core/util/cancel.h"
 #include "core/util/progress.h"
@@ -16,6 +17,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -44,21 +46,35 @@ struct Workspace {
 enum class StageStatus { kSuccess, kCanceled, kFailed, kDegenerate };
 std::string_view StageStatusName(StageStatus status);
 
+// What the packaging stage delivered: the archive it wrote at Workspace::archive_path.
+//
+// A typed field of the stage's result (and record) rather than keys of its JSON summary, so the
+// worker stores the archive's size and SHA-256 without looking figures up by name, and a
+// rename in the stage cannot silently break the job's result. It wraps core/io's own summary
+// of the archive (file list, bytes, SHA-256) instead of copying its fields. A later stage that
+// hands something to the caller gets its own typed field the same way.
+struct PackageResult {
+  std::filesystem::path archive_path;
+  ResultArchiveSummary archive;
+};
+
 // What a stage returns. Defaults read as "did not run" (a failure), never as a success.
 struct StageResult {
   StageStatus status = StageStatus::kFailed;
   std::string message = "stage did not run";
   // Counts and figures for the report and the job status (e.g. {"accepted": 11}).
   nlohmann::json summary = nlohmann::json::object();
+  // Set by the packaging stage when it wrote an archive.
+  std::optional<PackageResult> package;
 
   static StageResult Success(nlohmann::json summary = nlohmann::json::object()) {
-    return {StageStatus::kSuccess, "", std::move(summary)};
+    return {StageStatus::kSuccess, "", std::move(summary), std::nullopt};
   }
   static StageResult Failed(std::string message) {
-    return {StageStatus::kFailed, std::move(message), nlohmann::json::object()};
+    return {StageStatus::kFailed, std::move(message), nlohmann::json::object(), std::nullopt};
   }
   static StageResult Degenerate(std::string message) {
-    return {StageStatus::kDegenerate, std::move(message), nlohmann::json::object()};
+    return {StageStatus::kDegenerate, std::move(message), nlohmann::json::object(), std::nullopt};
   }
 };
 
@@ -73,6 +89,12 @@ struct StageRecord {
   // The values of the stage's OptionsUsed() it ran with, {name: value}.
   nlohmann::json options = nlohmann::json::object();
   bool resumed = false;  // Taken from an earlier run instead of run again.
+  // The stage's Resumable(): a later run may take its output over. Not written to stage.json
+  // (the runner sets it from the stage).
+  bool resumable = true;
+  // The packaging stage's archive (StageResult::package); not written to stage.json either:
+  // packaging is not resumable.
+  std::optional<PackageResult> package;
 
   nlohmann::json ToJson() const;
   static StageRecord FromJson(const nlohmann::json& json);

@@ -1,5 +1,7 @@
 #include "core/util/logging.h"
 
+#include "core/util/default_log_sink.h"
+
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -42,16 +44,6 @@ LogState& State() {
   return state;
 }
 
-void DefaultSink(LogLevel level, std::string_view message) {
-  const auto now = std::chrono::system_clock::now();
-  const std::time_t t = std::chrono::system_clock::to_time_t(now);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char stamp[32];
-  std::strftime(stamp, sizeof(stamp), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  std::cerr << stamp << ' ' << LogLevelName(level) << ' ' << message << '\n';
-}
-
 }  // namespace
 
 LogSink SetLogSink(LogSink sink) {
@@ -64,6 +56,16 @@ LogSink SetLogSink(LogSink sink) {
 void SetMinLogLevel(LogLevel level) { State().min_level = level; }
 
 LogLevel MinLogLevel() { return State().min_level; }
+
+void DefaultLogSink(LogLevel level, std::string_view message) {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char stamp[32];
+  std::strftime(stamp, sizeof(stamp), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  std::cerr << stamp << ' ' << LogLevelName(level) << ' ' << message << '\n';
+}
 
 std::string_view LogLevelName(LogLevel level) {
   switch (level) {
@@ -85,7 +87,7 @@ void LogMessage(LogLevel level, std::string_view message) {
   if (State().sink) {
     State().sink(level, message);
   } else {
-    DefaultSink(level, message);
+    DefaultLogSink(level, message);
   }
 }
 

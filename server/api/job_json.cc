@@ -83,7 +83,7 @@ nlohmann::json JobToJson(const Job& job, std::int64_t now_ms) {
   json["cancel_requested"] = job.cancel_requested;
 
   nlohmann::json counts = {{"images", job.image_count}};
-  if (job.counts.is_object()) counts.update(job.counts);
+  counts.update(job.counts.ToJson());
   json["counts"] = counts;
 
   if (job.state == JobState::kFailed || !job.error.empty()) {

@@ -38,7 +38,7 @@ Job RunningJob() {
   job.progress = 0.25;
   job.stage_progress = {{"ingest", {{"progress", 1}, {"seconds", 2.5}}}};
   job.image_count = 3;
-  job.counts = {{"features", 1000}};
+  job.counts.features = 1000;
   return job;
 }
 

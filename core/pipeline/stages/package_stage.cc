@@ -5,6 +5,8 @@
 #include "core/util/timer.h"
 
 #include <filesystem>
+#include <optional>
+#include <utility>
 
 namespace reconduit {
 
@@ -37,6 +39,7 @@ StageResult PackageStage::Run(StageContext& context) const {
   context.progress.Advance();
 
   nlohmann::json summary = nlohmann::json::object();
+  std::optional<PackageResult> package;
   if (!workspace.archive_path.empty()) {
     context.progress.SetMessage("writing result.zip");
     auto archive = WriteResultArchive(workspace.output_dir, workspace.archive_path, context.cancel);
@@ -44,9 +47,12 @@ StageResult PackageStage::Run(StageContext& context) const {
     summary["files"] = archive->files.size();
     summary["archive_bytes"] = archive->archive_bytes;
     summary["archive_sha256"] = archive->archive_sha256;
+    package = PackageResult{workspace.archive_path, std::move(archive).value()};
   }
   context.progress.Finish();
-  return StageResult::Success(std::move(summary));
+  StageResult result = StageResult::Success(std::move(summary));
+  result.package = std::move(package);
+  return result;
 }
 
 }  // namespace reconduit

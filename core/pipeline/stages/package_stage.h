@@ -2,7 +2,9 @@
 //
 // report.json records every earlier stage (status, seconds, peak memory, its summary counts),
 // the options the run used, and the totals. The whole output folder is then packed into the
-// workspace's archive (when one is set) with a manifest of sizes and SHA-256 sums.
+// workspace's archive (when one is set) with a manifest of sizes and SHA-256 sums; the stage's
+// result then carries the archive as a PackageResult (its summary keeps the figures for the
+// job's stage status and the log).
 #ifndef RECONDUIT_CORE_PIPELINE_STAGES_PACKAGE_STAGE_H_
 #define RECONDUIT_CORE_PIPELINE_STAGES_PACKAGE_STAGE_H_
 

@@ -42,6 +42,14 @@ TEST(PackageStage, WritesReportManifestAndArchive) {
   const nlohmann::json& summary = result.stages.back().summary;
   EXPECT_EQ(summary["files"], 3) << "cameras.json, report.json, manifest.json";
   EXPECT_EQ(summary["archive_sha256"], *Sha256OfFile(workspace.archive_path));
+  // The typed hand-off carries the same archive.
+  const std::optional<PackageResult>& package = result.stages.back().package;
+  ASSERT_TRUE(package.has_value());
+  EXPECT_EQ(package->archive_path, workspace.archive_path);
+  EXPECT_EQ(package->archive.archive_sha256, *Sha256OfFile(workspace.archive_path));
+  EXPECT_EQ(package->archive.archive_bytes,
+            static_cast<std::int64_t>(fs::file_size(workspace.archive_path)));
+  EXPECT_EQ(package->archive.files.size(), 3u);
   fs::remove_all(root);
 }
 
