@@ -8,9 +8,8 @@
 #include "core/io/reconstruction_json.h"
 #include "core/pipeline/stages/ingest_stage.h"
 
-#include <gtest/gtest.h>
-
 #include <Eigen/Geometry>
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <string>
@@ -57,9 +56,8 @@ Reconstruction MakeModel() {
     rec.images[id] = image;
   }
   for (int k = 0; k < 5; ++k) {
-    const int id =
-        rec.AddPoint(Eigen::Vector3d(k / 3.0, -k / 7.0, 4.0 + k / 9.0),
-                     {{0, k}, {1, k + 1}, {3, 5 - k}});
+    const int id = rec.AddPoint(Eigen::Vector3d(k / 3.0, -k / 7.0, 4.0 + k / 9.0),
+                                {{0, k}, {1, k + 1}, {3, 5 - k}});
     rec.points[id].rgb = {static_cast<std::uint8_t>(40 * k), 200, static_cast<std::uint8_t>(k)};
     rec.points[id].error = 0.1 + k / 13.0;
   }
@@ -71,8 +69,11 @@ class ExportStageTest : public ::testing::Test {
   void SetUp() override {
     root_ = fs::temp_directory_path() / ("reconduit_export_stage_test_" + std::to_string(getpid()));
     fs::remove_all(root_);
-    workspace_.images = {{"a.jpg", "a.jpg"}, {"b.jpg", "b.jpg"}, {"c.jpg", "c.jpg"},
-                         {"d.jpg", "d.jpg"}, {"e.txt", "e.txt"}};
+    workspace_.images = {{"a.jpg", "a.jpg"},
+                         {"b.jpg", "b.jpg"},
+                         {"c.jpg", "c.jpg"},
+                         {"d.jpg", "d.jpg"},
+                         {"e.txt", "e.txt"}};
     workspace_.work_dir = root_ / "work";
     workspace_.output_dir = root_ / "output";
     fs::create_directories(workspace_.StageDir("ingest"));
