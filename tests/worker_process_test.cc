@@ -357,7 +357,7 @@ TEST_F(WorkerProcessTest, SigtermMidJobReleasesItAndTheNextWorkerFinishesIt) {
   EXPECT_EQ(Count(events, "stage 'ingest' finished in an earlier run"), 1);
 }
 
-// The stages a run can resume, in pipeline order (packaging always runs again).
+// The stages a run can resume, in pipeline order (export and packaging always run again).
 const std::vector<std::string> kResumableStages = {"ingest", "features", "pairs", "matching",
                                                    "sparse"};
 
@@ -466,7 +466,7 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
     EXPECT_EQ(job.counts.registered.value_or(0), kSmall.count);
 
     // The rescuer's run: after its "started by" line, the stages finished on disk are skipped
-    // and every other stage (and packaging) runs exactly once.
+    // and every other stage (and export and packaging) runs exactly once.
     const std::vector<std::string> events = Events(id);
     const std::string all = ::testing::PrintToString(events);
     EXPECT_EQ(Count(events, "started by worker"), 2) << all;
@@ -489,6 +489,7 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
           << stage << "\n"
           << all;
     }
+    EXPECT_EQ(Count(rescue, "export|stage 'export' started"), 1) << all;
     EXPECT_EQ(Count(rescue, "package|stage 'package' started"), 1) << all;
 
     // One result.zip, the one the store describes, whose manifest matches its entries and the
@@ -531,7 +532,9 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
     const nlohmann::json report = nlohmann::json::parse(entries.at("report.json"));
     std::vector<std::string> reported;
     for (const nlohmann::json& stage : report.at("stages")) reported.push_back(stage.at("name"));
-    EXPECT_EQ(reported, kResumableStages);
+    std::vector<std::string> expected_stages = kResumableStages;
+    expected_stages.push_back("export");  // Not resumable: it runs again, before packaging.
+    EXPECT_EQ(reported, expected_stages);
   }
 
   // Nothing lost, nothing duplicated: the same ten jobs, all succeeded, each started by its

@@ -3,7 +3,7 @@
 'use strict';
 
 const API = '/api/v1';
-const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'package'];
+const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'export', 'package'];
 const FINAL = new Set(['succeeded', 'failed', 'canceled']);
 
 const $ = (id) => document.getElementById(id);

@@ -139,14 +139,15 @@ TEST_F(JobRunnerTest, RealStagesSucceedWithResultArchive) {
   const JobRunReport report = runner.Run(Claim(id));
   ASSERT_EQ(report.outcome, JobRunOutcome::kSucceeded) << report.stage << ": " << report.message;
   EXPECT_THAT(report.resumed_stages, IsEmpty());
-  EXPECT_THAT(report.run_stages, ElementsAre("ingest", "features", "pairs", "matching", "package"));
+  EXPECT_THAT(report.run_stages,
+              ElementsAre("ingest", "features", "pairs", "matching", "export", "package"));
 
   const Job job = Get(id);
   EXPECT_EQ(job.state, JobState::kSucceeded);
   EXPECT_DOUBLE_EQ(job.progress, 1.0);
-  // Packaging is not resumable and is not listed: a rerun packs again.
+  // Export and packaging are not resumable and are not listed: a rerun writes and packs again.
   EXPECT_EQ(job.finished_stages,
-            std::vector<std::string>(report.run_stages.begin(), report.run_stages.end() - 1));
+            std::vector<std::string>(report.run_stages.begin(), report.run_stages.end() - 2));
   EXPECT_EQ(job.counts.images.value_or(-1), kPhotos) << job.counts.ToJson().dump();
   EXPECT_GT(job.counts.features.value_or(0), 100) << job.counts.ToJson().dump();
   EXPECT_GT(job.counts.matched_pairs.value_or(0), 0) << job.counts.ToJson().dump();
@@ -257,7 +258,7 @@ TEST_F(JobRunnerTest, ResumeSkipsStagesFinishedEarlier) {
   const JobRunReport report = runner.Run(Claim(id));
   ASSERT_EQ(report.outcome, JobRunOutcome::kSucceeded) << report.stage << ": " << report.message;
   EXPECT_THAT(report.resumed_stages, ElementsAre("ingest", "features"));
-  EXPECT_THAT(report.run_stages, ElementsAre("pairs", "matching", "package"));
+  EXPECT_THAT(report.run_stages, ElementsAre("pairs", "matching", "export", "package"));
   EXPECT_EQ(*ReadFile(layout_.WorkDir(id) / "features" / "stage.json"), features_marker);
   EXPECT_EQ(fs::last_write_time(layout_.WorkDir(id) / "features" / "stage.json"), features_time);
   const Job job = Get(id);

@@ -1,5 +1,6 @@
 #include "core/pipeline/default_stages.h"
 
+#include "core/pipeline/stages/export_stage.h"
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/matching_stage.h"
@@ -15,7 +16,7 @@ namespace {
 
 using StageFactory = std::function<std::unique_ptr<Stage>()>;
 
-// The stages before packaging, in order. A stage is listed here when it exists.
+// The stages that can end a run (`--until`), in order. A stage is listed here when it exists.
 std::vector<std::pair<std::string, StageFactory>> WorkStages() {
   return {
       {"ingest", [] { return std::make_unique<IngestStage>(); }},
@@ -50,6 +51,9 @@ Result<std::vector<std::unique_ptr<Stage>>> CreatePipelineStages(const std::stri
       known += (known.empty() ? "" : ", ") + name;
     return Status::InvalidArgument("unknown stage '" + until + "'; stages: " + known);
   }
+  // Export and packaging run every time, whatever `until` is: a partial run still delivers
+  // what its stages produced, a report and an archive.
+  stages.push_back(std::make_unique<ExportStage>());
   stages.push_back(std::make_unique<PackageStage>());
   return stages;
 }

@@ -11,11 +11,14 @@
 
 namespace reconduit {
 
-// Names of the stages that can end a run (`--until`), in pipeline order.
+// Names of the stages that can end a run (`--until`), in pipeline order. Export and packaging
+// are not among them: they always run, last.
 std::vector<std::string> PipelineStageNames();
 
-// Every stage up to and including `until` (empty: all), then packaging (always last, so a
-// partial run still delivers a report and an archive). InvalidArgument for an unknown name.
+// Every stage up to and including `until` (empty: all), then export (the deliverables of the
+// stages that ran into output/, stages/export_stage.h) and packaging, always last, so that a
+// partial run still delivers its results, a report and an archive. InvalidArgument for an
+// unknown name.
 Result<std::vector<std::unique_ptr<Stage>>> CreatePipelineStages(const std::string& until = "");
 
 }  // namespace reconduit

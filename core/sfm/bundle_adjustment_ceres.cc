@@ -29,6 +29,7 @@
 #include <set>
 #include <sstream>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace reconduit {
@@ -246,6 +247,282 @@ void EstimateIntrinsicsStddev(int num_threads,
   }
 }
 
+// Which poses and cameras an adjustment may change, from the options' id lists. Ids named in
+// the options must exist: a wrong id is a caller bug, not a data condition.
+struct VariableSelection {
+  std::set<int> constant_poses;
+  std::set<int> variable_poses;  // Non-empty: a local adjustment of these poses only.
+  std::set<int> constant_cameras;
+
+  bool local() const { return !variable_poses.empty(); }
+  bool PoseIsVariable(int image_id) const {
+    return !constant_poses.contains(image_id) && (!local() || variable_poses.contains(image_id));
+  }
+};
+
+VariableSelection SelectVariables(const BundleAdjustmentOptions& options,
+                                  const Reconstruction& rec) {
+  VariableSelection selection;
+  selection.constant_poses =
+      std::set<int>(options.constant_pose_image_ids.begin(), options.constant_pose_image_ids.end());
+  selection.variable_poses =
+      std::set<int>(options.variable_pose_image_ids.begin(), options.variable_pose_image_ids.end());
+  selection.constant_cameras =
+      std::set<int>(options.constant_camera_ids.begin(), options.constant_camera_ids.end());
+  for (const std::set<int>* ids : {&selection.constant_poses, &selection.variable_poses}) {
+    for (int id : *ids) THROW_CHECK(rec.images.contains(id)) << "no image " << id;
+  }
+  for (int id : selection.constant_cameras) {
+    THROW_CHECK(rec.cameras.contains(id)) << "no camera " << id;
+  }
+  if (options.scale_fixing_image_id != kInvalidId) {
+    THROW_CHECK(rec.images.contains(options.scale_fixing_image_id))
+        << "no image " << options.scale_fixing_image_id;
+  }
+  return selection;
+}
+
+// The points to adjust: all of them (global), or those seen by the variable images (local).
+std::vector<int> CandidatePoints(const Reconstruction& rec, const VariableSelection& selection) {
+  std::vector<int> candidate_points;
+  if (selection.local()) {
+    std::set<int> seen;
+    for (int image_id : selection.variable_poses) {
+      for (int point_id : rec.images.at(image_id).point_for_keypoint) {
+        if (point_id != kInvalidId && rec.points.contains(point_id)) seen.insert(point_id);
+      }
+    }
+    candidate_points.assign(seen.begin(), seen.end());
+  } else {
+    candidate_points.reserve(rec.points.size());
+    for (const auto& [point_id, point] : rec.points) candidate_points.push_back(point_id);
+  }
+  return candidate_points;
+}
+
+// The copies of the parameters an adjustment works on, and the observations that use them.
+// std::map nodes do not move, so pointers into them stay valid while Ceres holds them.
+//
+// The results depend on the heap layout, to the last bit: Ceres orders the parameter blocks of
+// an elimination group by address (ParameterBlockOrdering), and the elimination order changes
+// the rounding. So the buffers used to set up the problem live as long as the problem
+// (`usable` here; the candidate points, held intrinsics and ordering in BundleAdjust), as they
+// did when BundleAdjust was one function; changing what is allocated, or when, before the
+// solve changes results in the last digits (not their accuracy).
+struct ProblemParameters {
+  std::map<int, PoseBlock> poses;
+  std::map<int, IntrinsicsBlock> intrinsics;
+  std::unordered_map<int, std::array<double, 3>> points;
+  std::vector<UsedObservation> used;
+  std::vector<UsedObservation> usable;  // One point's usable observations, reused.
+};
+
+// The observations of `point_id` in front of their cameras (counted in `summary` when not).
+void UsableObservations(const Reconstruction& rec,
+                        int point_id,
+                        BundleAdjustmentSummary* summary,
+                        std::vector<UsedObservation>* usable) {
+  const Point3D& point = rec.points.at(point_id);
+  usable->clear();
+  for (const Observation& o : point.observations) {
+    const auto image_it = rec.images.find(o.image_id);
+    THROW_CHECK(image_it != rec.images.end())
+        << "point " << point_id << " is observed by unknown image " << o.image_id;
+    const RegisteredImage& image = image_it->second;
+    THROW_CHECK(o.keypoint >= 0 && o.keypoint < static_cast<int>(image.keypoints.size()))
+        << "point " << point_id << ": keypoint " << o.keypoint << " of image " << o.image_id;
+    THROW_CHECK(rec.cameras.contains(image.camera_id))
+        << "image " << o.image_id << " has unknown camera " << image.camera_id;
+    // A point behind the camera has no projection (ImgFromCam); it could not be evaluated.
+    if (!((image.cam_from_world * point.xyz_in_world).z() > 0.0)) {
+      ++summary->num_skipped_observations;
+      continue;
+    }
+    usable->push_back({point_id, o.image_id, o.keypoint});
+  }
+}
+
+// Copies the parameters of every candidate point with 2 or more usable observations, and of
+// the poses and cameras of those observations, into `parameters`; counts them in `summary`.
+void CollectParameters(const Reconstruction& rec,
+                       const std::vector<int>& candidate_points,
+                       const VariableSelection& selection,
+                       ProblemParameters* parameters,
+                       BundleAdjustmentSummary* summary) {
+  parameters->points.reserve(candidate_points.size());
+  std::vector<UsedObservation>& usable = parameters->usable;
+  for (int point_id : candidate_points) {
+    UsableObservations(rec, point_id, summary, &usable);
+    if (usable.size() < 2) {
+      ++summary->num_skipped_points;
+      continue;
+    }
+    Eigen::Map<Eigen::Vector3d>(parameters->points[point_id].data()) =
+        rec.points.at(point_id).xyz_in_world;
+    for (const UsedObservation& o : usable) {
+      const RegisteredImage& image = rec.images.at(o.image_id);
+      if (!parameters->poses.contains(o.image_id)) {
+        PoseBlock& block = parameters->poses[o.image_id] = PoseBlockFromRigid(image.cam_from_world);
+        block.constant = !selection.PoseIsVariable(o.image_id);
+      }
+      if (!parameters->intrinsics.contains(image.camera_id)) {
+        parameters->intrinsics[image.camera_id] =
+            IntrinsicsFromCamera(rec.cameras.at(image.camera_id));
+      }
+      parameters->used.push_back(o);
+    }
+  }
+  summary->num_images = static_cast<int>(parameters->poses.size());
+  for (const auto& [image_id, block] : parameters->poses) {
+    summary->num_variable_images += !block.constant;
+  }
+  summary->num_cameras = static_cast<int>(parameters->intrinsics.size());
+  summary->num_points = static_cast<int>(parameters->points.size());
+  summary->num_observations = static_cast<int>(parameters->used.size());
+}
+
+// One reprojection residual per used observation, weighted by its keypoint's stddev.
+void AddResiduals(const Reconstruction& rec,
+                  ceres::LossFunction* loss,
+                  ProblemParameters* parameters,
+                  ceres::Problem* problem) {
+  for (const UsedObservation& o : parameters->used) {
+    const RegisteredImage& image = rec.images.at(o.image_id);
+    PoseBlock& pose = parameters->poses.at(o.image_id);
+    problem->AddResidualBlock(
+        ReprojectionError::Create(image.keypoints[o.keypoint], image.KeypointStddev(o.keypoint)),
+        loss, pose.rotation.data(), pose.translation.data(),
+        parameters->points.at(o.point_id).data(),
+        parameters->intrinsics.at(image.camera_id).data());
+  }
+}
+
+// Poses: rotation on the unit-quaternion manifold; constant blocks stay untouched; the
+// scale-fixing image holds one translation coordinate.
+void ParameterisePoses(const BundleAdjustmentOptions& options,
+                       const Reconstruction& rec,
+                       std::map<int, PoseBlock>* poses,
+                       ceres::Problem* problem) {
+  const Rigid3d* scale_reference = nullptr;
+  for (int id : options.constant_pose_image_ids) {
+    if (poses->contains(id)) {
+      scale_reference = &rec.images.at(id).cam_from_world;
+      break;
+    }
+  }
+  for (auto& [image_id, pose] : *poses) {
+    if (pose.constant) {
+      problem->SetParameterBlockConstant(pose.rotation.data());
+      problem->SetParameterBlockConstant(pose.translation.data());
+      continue;
+    }
+    problem->SetManifold(pose.rotation.data(), new ceres::EigenQuaternionManifold);
+    if (image_id == options.scale_fixing_image_id) {
+      const int index =
+          options.scale_fixing_translation_index >= 0
+              ? options.scale_fixing_translation_index
+              : AutoScaleFixingIndex(rec.images.at(image_id).cam_from_world, scale_reference);
+      problem->SetManifold(pose.translation.data(), new ceres::SubsetManifold(3, {index}));
+      LOG_DEBUG << "BA: scale fixed by translation[" << index << "] of image " << image_id;
+    }
+  }
+  if (options.scale_fixing_image_id != kInvalidId &&
+      (!poses->contains(options.scale_fixing_image_id) ||
+       poses->at(options.scale_fixing_image_id).constant)) {
+    LOG_WARNING << "BA: scale-fixing image " << options.scale_fixing_image_id
+                << " is not a variable pose of this problem; the scale is not fixed by it";
+  }
+}
+
+// The entries of an intrinsics block that the options hold constant.
+std::vector<int> HeldIntrinsics(const BundleAdjustmentOptions& options) {
+  std::vector<int> constant_intrinsics;
+  if (!options.refine_focal) constant_intrinsics.push_back(kIntrinsicsFocal);
+  if (!options.refine_principal_point) {
+    constant_intrinsics.push_back(kIntrinsicsCx);
+    constant_intrinsics.push_back(kIntrinsicsCy);
+  }
+  if (!options.refine_k1) constant_intrinsics.push_back(kIntrinsicsK1);
+  if (!options.refine_k2) constant_intrinsics.push_back(kIntrinsicsK2);
+  return constant_intrinsics;
+}
+
+// Intrinsics: one block per camera; the held entries through a subset manifold, a block with
+// every entry held (or of a constant camera) constant.
+void ParameteriseIntrinsics(const std::vector<int>& constant_intrinsics,
+                            const std::set<int>& constant_cameras,
+                            std::map<int, IntrinsicsBlock>* intrinsics,
+                            ceres::Problem* problem) {
+  for (auto& [camera_id, block] : *intrinsics) {
+    if (constant_cameras.contains(camera_id) ||
+        constant_intrinsics.size() == static_cast<std::size_t>(kNumIntrinsics)) {
+      problem->SetParameterBlockConstant(block.data());
+    } else if (!constant_intrinsics.empty()) {
+      problem->SetManifold(block.data(),
+                           new ceres::SubsetManifold(kNumIntrinsics, constant_intrinsics));
+    }
+  }
+}
+
+// Schur ordering: eliminate the points first (group 0), then solve for cameras.
+std::shared_ptr<ceres::ParameterBlockOrdering> SchurOrdering(ProblemParameters* parameters) {
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (auto& [point_id, xyz] : parameters->points) ordering->AddElementToGroup(xyz.data(), 0);
+  for (auto& [image_id, pose] : parameters->poses) {
+    ordering->AddElementToGroup(pose.rotation.data(), 1);
+    ordering->AddElementToGroup(pose.translation.data(), 1);
+  }
+  for (auto& [camera_id, block] : parameters->intrinsics) {
+    ordering->AddElementToGroup(block.data(), 1);
+  }
+  return ordering;
+}
+
+// The solver's options: the ordering, linear solver, tolerances, threads (no callbacks yet).
+ceres::Solver::Options SolverOptionsFor(const BundleAdjustmentOptions& options,
+                                        std::shared_ptr<ceres::ParameterBlockOrdering> ordering,
+                                        int num_variable_images) {
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_ordering = std::move(ordering);
+  ChooseLinearSolver(options, num_variable_images, &solver_options);
+  solver_options.max_num_iterations = options.max_num_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.max_solver_time_in_seconds = options.max_solver_time_seconds;
+  solver_options.num_threads = EffectiveNumThreads(options.num_threads);
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  return solver_options;
+}
+
+// Copies what varied back into the reconstruction.
+void WriteBack(const ProblemParameters& parameters,
+               const ceres::Problem& problem,
+               Reconstruction* rec) {
+  for (const auto& [image_id, pose] : parameters.poses) {
+    if (!pose.constant) PoseBlockToRigid(pose, &rec->images.at(image_id).cam_from_world);
+  }
+  for (const auto& [camera_id, block] : parameters.intrinsics) {
+    if (!problem.IsParameterBlockConstant(block.data())) {
+      IntrinsicsToCamera(block, &rec->cameras.at(camera_id));
+    }
+  }
+  for (const auto& [point_id, xyz] : parameters.points) {
+    rec->points.at(point_id).xyz_in_world = Eigen::Map<const Eigen::Vector3d>(xyz.data());
+  }
+}
+
+// Fills the summary's solver figures from Ceres's.
+void RecordSolve(const ceres::Solver::Summary& ceres_summary, BundleAdjustmentSummary* summary) {
+  summary->termination = TerminationName(ceres_summary.termination_type);
+  summary->linear_solver = ceres::LinearSolverTypeToString(ceres_summary.linear_solver_type_used);
+  summary->initial_cost = ceres_summary.initial_cost;
+  summary->final_cost = ceres_summary.final_cost;
+  summary->num_iterations =
+      std::max(0, ceres_summary.num_successful_steps + ceres_summary.num_unsuccessful_steps);
+}
+
 }  // namespace
 
 BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
@@ -259,184 +536,33 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   Reconstruction& rec = *reconstruction;
   BundleAdjustmentSummary summary;
 
-  // Ids named in the options must exist: a wrong id is a caller bug, not a data condition.
-  const std::set<int> constant_poses(options.constant_pose_image_ids.begin(),
-                                     options.constant_pose_image_ids.end());
-  const std::set<int> variable_poses(options.variable_pose_image_ids.begin(),
-                                     options.variable_pose_image_ids.end());
-  const std::set<int> constant_cameras(options.constant_camera_ids.begin(),
-                                       options.constant_camera_ids.end());
-  for (const std::set<int>* ids : {&constant_poses, &variable_poses}) {
-    for (int id : *ids) THROW_CHECK(rec.images.contains(id)) << "no image " << id;
-  }
-  for (int id : constant_cameras) THROW_CHECK(rec.cameras.contains(id)) << "no camera " << id;
-  if (options.scale_fixing_image_id != kInvalidId) {
-    THROW_CHECK(rec.images.contains(options.scale_fixing_image_id))
-        << "no image " << options.scale_fixing_image_id;
-  }
-  const bool local = !variable_poses.empty();
-  const auto pose_is_variable = [&](int image_id) {
-    return !constant_poses.contains(image_id) && (!local || variable_poses.contains(image_id));
-  };
-
-  // The points to adjust: all of them (global), or those seen by the variable images (local).
-  std::vector<int> candidate_points;
-  if (local) {
-    std::set<int> seen;
-    for (int image_id : variable_poses) {
-      for (int point_id : rec.images.at(image_id).point_for_keypoint) {
-        if (point_id != kInvalidId && rec.points.contains(point_id)) seen.insert(point_id);
-      }
-    }
-    candidate_points.assign(seen.begin(), seen.end());
-  } else {
-    candidate_points.reserve(rec.points.size());
-    for (const auto& [point_id, point] : rec.points) candidate_points.push_back(point_id);
-  }
-
-  // Parameter copies. std::map nodes do not move, so pointers into them stay valid.
-  std::map<int, PoseBlock> poses;
-  std::map<int, IntrinsicsBlock> intrinsics;
-  std::unordered_map<int, std::array<double, 3>> points;
-  points.reserve(candidate_points.size());
-  std::vector<UsedObservation> used;
-  std::vector<UsedObservation> usable;  // Per point, reused.
-  for (int point_id : candidate_points) {
-    const Point3D& point = rec.points.at(point_id);
-    usable.clear();
-    for (const Observation& o : point.observations) {
-      const auto image_it = rec.images.find(o.image_id);
-      THROW_CHECK(image_it != rec.images.end())
-          << "point " << point_id << " is observed by unknown image " << o.image_id;
-      const RegisteredImage& image = image_it->second;
-      THROW_CHECK(o.keypoint >= 0 && o.keypoint < static_cast<int>(image.keypoints.size()))
-          << "point " << point_id << ": keypoint " << o.keypoint << " of image " << o.image_id;
-      THROW_CHECK(rec.cameras.contains(image.camera_id))
-          << "image " << o.image_id << " has unknown camera " << image.camera_id;
-      // A point behind the camera has no projection (ImgFromCam); it could not be evaluated.
-      if (!((image.cam_from_world * point.xyz_in_world).z() > 0.0)) {
-        ++summary.num_skipped_observations;
-        continue;
-      }
-      usable.push_back({point_id, o.image_id, o.keypoint});
-    }
-    if (usable.size() < 2) {
-      ++summary.num_skipped_points;
-      continue;
-    }
-    Eigen::Map<Eigen::Vector3d>(points[point_id].data()) = point.xyz_in_world;
-    for (const UsedObservation& o : usable) {
-      const RegisteredImage& image = rec.images.at(o.image_id);
-      if (!poses.contains(o.image_id)) {
-        PoseBlock& block = poses[o.image_id] = PoseBlockFromRigid(image.cam_from_world);
-        block.constant = !pose_is_variable(o.image_id);
-      }
-      if (!intrinsics.contains(image.camera_id)) {
-        intrinsics[image.camera_id] = IntrinsicsFromCamera(rec.cameras.at(image.camera_id));
-      }
-      used.push_back(o);
-    }
-  }
-
-  summary.num_images = static_cast<int>(poses.size());
-  for (const auto& [image_id, block] : poses) summary.num_variable_images += !block.constant;
-  summary.num_cameras = static_cast<int>(intrinsics.size());
-  summary.num_points = static_cast<int>(points.size());
-  summary.num_observations = static_cast<int>(used.size());
-  if (used.empty()) {
+  const VariableSelection selection = SelectVariables(options, rec);
+  const std::vector<int> candidate_points = CandidatePoints(rec, selection);
+  ProblemParameters parameters;
+  CollectParameters(rec, candidate_points, selection, &parameters, &summary);
+  if (parameters.used.empty()) {
     summary.message = "nothing to adjust: no point has 2 or more usable observations";
     summary.time_seconds = timer.ElapsedSeconds();
     return summary;
   }
-  summary.initial_rms_px = RmsReprojectionError(rec, used);
+  summary.initial_rms_px = RmsReprojectionError(rec, parameters.used);
 
   // The loss is shared by all residuals and owned here; it must outlive the problem.
   const std::unique_ptr<ceres::LossFunction> loss = CreateLoss(options.loss, options.loss_scale);
   ceres::Problem::Options problem_options;
   problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
-  for (const UsedObservation& o : used) {
-    const RegisteredImage& image = rec.images.at(o.image_id);
-    PoseBlock& pose = poses.at(o.image_id);
-    problem.AddResidualBlock(
-        ReprojectionError::Create(image.keypoints[o.keypoint], image.KeypointStddev(o.keypoint)),
-        loss.get(), pose.rotation.data(), pose.translation.data(), points.at(o.point_id).data(),
-        intrinsics.at(image.camera_id).data());
-  }
+  AddResiduals(rec, loss.get(), &parameters, &problem);
+  ParameterisePoses(options, rec, &parameters.poses, &problem);
+  const std::vector<int> constant_intrinsics = HeldIntrinsics(options);
+  ParameteriseIntrinsics(constant_intrinsics, selection.constant_cameras, &parameters.intrinsics,
+                         &problem);
 
-  // Poses: rotation on the unit-quaternion manifold; constant blocks stay untouched.
-  const Rigid3d* scale_reference = nullptr;
-  for (int id : options.constant_pose_image_ids) {
-    if (poses.contains(id)) {
-      scale_reference = &rec.images.at(id).cam_from_world;
-      break;
-    }
-  }
-  for (auto& [image_id, pose] : poses) {
-    if (pose.constant) {
-      problem.SetParameterBlockConstant(pose.rotation.data());
-      problem.SetParameterBlockConstant(pose.translation.data());
-      continue;
-    }
-    problem.SetManifold(pose.rotation.data(), new ceres::EigenQuaternionManifold);
-    if (image_id == options.scale_fixing_image_id) {
-      const int index =
-          options.scale_fixing_translation_index >= 0
-              ? options.scale_fixing_translation_index
-              : AutoScaleFixingIndex(rec.images.at(image_id).cam_from_world, scale_reference);
-      problem.SetManifold(pose.translation.data(), new ceres::SubsetManifold(3, {index}));
-      LOG_DEBUG << "BA: scale fixed by translation[" << index << "] of image " << image_id;
-    }
-  }
-  if (options.scale_fixing_image_id != kInvalidId &&
-      (!poses.contains(options.scale_fixing_image_id) ||
-       poses.at(options.scale_fixing_image_id).constant)) {
-    LOG_WARNING << "BA: scale-fixing image " << options.scale_fixing_image_id
-                << " is not a variable pose of this problem; the scale is not fixed by it";
-  }
-
-  // Intrinsics: one block per camera; fixed entries through a subset manifold.
-  std::vector<int> constant_intrinsics;
-  if (!options.refine_focal) constant_intrinsics.push_back(kIntrinsicsFocal);
-  if (!options.refine_principal_point) {
-    constant_intrinsics.push_back(kIntrinsicsCx);
-    constant_intrinsics.push_back(kIntrinsicsCy);
-  }
-  if (!options.refine_k1) constant_intrinsics.push_back(kIntrinsicsK1);
-  if (!options.refine_k2) constant_intrinsics.push_back(kIntrinsicsK2);
-  for (auto& [camera_id, block] : intrinsics) {
-    if (constant_cameras.contains(camera_id) ||
-        constant_intrinsics.size() == static_cast<std::size_t>(kNumIntrinsics)) {
-      problem.SetParameterBlockConstant(block.data());
-    } else if (!constant_intrinsics.empty()) {
-      problem.SetManifold(block.data(),
-                          new ceres::SubsetManifold(kNumIntrinsics, constant_intrinsics));
-    }
-  }
-
-  // Schur ordering: eliminate the points first (group 0), then solve for cameras.
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-  for (auto& [point_id, xyz] : points) ordering->AddElementToGroup(xyz.data(), 0);
-  for (auto& [image_id, pose] : poses) {
-    ordering->AddElementToGroup(pose.rotation.data(), 1);
-    ordering->AddElementToGroup(pose.translation.data(), 1);
-  }
-  for (auto& [camera_id, block] : intrinsics) ordering->AddElementToGroup(block.data(), 1);
-
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_ordering = ordering;
-  ChooseLinearSolver(options, summary.num_variable_images, &solver_options);
-  solver_options.max_num_iterations = options.max_num_iterations;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.gradient_tolerance = options.gradient_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.max_solver_time_in_seconds = options.max_solver_time_seconds;
-  solver_options.num_threads = EffectiveNumThreads(options.num_threads);
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.minimizer_progress_to_stdout = false;
+  const std::shared_ptr<ceres::ParameterBlockOrdering> ordering = SchurOrdering(&parameters);
+  ceres::Solver::Options solver_options =
+      SolverOptionsFor(options, ordering, summary.num_variable_images);
   CancelAndLogCallback callback(cancel, "BA");
   solver_options.callbacks.push_back(&callback);  // Not owned by Ceres.
-
   ceres::Solver::Summary ceres_summary;
   QuietCeresUnlessDebugging();
   ceres::Solve(solver_options, &problem, &ceres_summary);
@@ -447,12 +573,7 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   }
 
   LOG_DEBUG << ceres_summary.FullReport();
-  summary.termination = TerminationName(ceres_summary.termination_type);
-  summary.linear_solver = ceres::LinearSolverTypeToString(ceres_summary.linear_solver_type_used);
-  summary.initial_cost = ceres_summary.initial_cost;
-  summary.final_cost = ceres_summary.final_cost;
-  summary.num_iterations =
-      std::max(0, ceres_summary.num_successful_steps + ceres_summary.num_unsuccessful_steps);
+  RecordSolve(ceres_summary, &summary);
   if (!ceres_summary.IsSolutionUsable()) {
     summary.success = false;
     summary.message = "solver failed: " + ceres_summary.message;
@@ -462,25 +583,14 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
     return summary;
   }
 
-  // Write back what varied.
-  for (const auto& [image_id, pose] : poses) {
-    if (!pose.constant) PoseBlockToRigid(pose, &rec.images.at(image_id).cam_from_world);
-  }
-  for (const auto& [camera_id, block] : intrinsics) {
-    if (!problem.IsParameterBlockConstant(block.data())) {
-      IntrinsicsToCamera(block, &rec.cameras.at(camera_id));
-    }
-  }
-  for (const auto& [point_id, xyz] : points) {
-    rec.points.at(point_id).xyz_in_world = Eigen::Map<const Eigen::Vector3d>(xyz.data());
-  }
-
-  summary.final_rms_px = RmsReprojectionError(rec, used);
+  WriteBack(parameters, problem, &rec);
+  summary.final_rms_px = RmsReprojectionError(rec, parameters.used);
   summary.success = true;
   summary.message = ceres_summary.message;
   if (options.estimate_intrinsics_stddev && !cancel.IsCanceled()) {
     if (summary.num_observations <= options.max_observations_for_stddev) {
-      EstimateIntrinsicsStddev(solver_options.num_threads, intrinsics, &problem, &summary);
+      EstimateIntrinsicsStddev(solver_options.num_threads, parameters.intrinsics, &problem,
+                               &summary);
     } else {
       LOG_INFO << "BA: " << summary.num_observations << " observations, more than "
                << options.max_observations_for_stddev << ": intrinsics precision not estimated";

@@ -132,7 +132,7 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   // Every stage finished, the camera table shows a focal length, the pictures load.
   const statuses = await page.$$eval('#stage-rows tr td:nth-child(2)', (cells) =>
       cells.map((cell) => cell.textContent));
-  assert.deepEqual(statuses, Array(6).fill('success'));
+  assert.deepEqual(statuses, Array(7).fill('success'));
   // The focal length with its precision (one standard deviation).
   assert.match(await page.textContent('#cameras'), /\d+\.\d\d ± \d+\.\d\d/);
   await page.waitForFunction(() => {

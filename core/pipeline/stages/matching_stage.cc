@@ -138,85 +138,88 @@ int AddGuidedMatches(const DescriptorMatrix& descriptors1,
   return added;
 }
 
-}  // namespace
-
-StageResult MatchingStage::Run(StageContext& context) const {
-  auto images = ReadIngestedImages(context.workspace);
-  if (!images.ok()) return StageResult::Failed(images.status().message());
-  auto chosen = ReadImagePairs(context.workspace);
-  if (!chosen.ok()) return StageResult::Failed(chosen.status().message());
-
-  // Keypoints and unit-norm descriptors of every photo that takes part.
-  std::map<int, FeatureSet> features;
+// Keypoints and unit-norm descriptors of every photo that takes part in a chosen pair.
+struct PairFeatures {
+  std::map<int, FeatureSet> features;  // Keypoints only (descriptors released).
   std::map<int, DescriptorMatrix> descriptors;
   std::map<int, std::vector<Eigen::Vector2d>> keypoints;
-  std::vector<int> indices;
-  for (const ImagePair& p : *chosen) {
+  std::vector<int> indices;  // The photos, ascending.
+};
+
+Status ReadPairFeatures(const Workspace& workspace,
+                        const std::vector<ImagePair>& chosen,
+                        PairFeatures* out) {
+  for (const ImagePair& p : chosen) {
     for (int index : {p.image1, p.image2}) {
-      if (features.count(index)) continue;
-      auto f = ReadImageFeatures(context.workspace, index);
-      if (!f.ok()) return StageResult::Failed(f.status().message());
-      descriptors[index] = ToDescriptorMatrix(*f);
-      for (const Keypoint& kp : f->keypoints) keypoints[index].emplace_back(kp.x, kp.y);
+      if (out->features.count(index)) continue;
+      auto f = ReadImageFeatures(workspace, index);
+      if (!f.ok()) return f.status();
+      out->descriptors[index] = ToDescriptorMatrix(*f);
+      for (const Keypoint& kp : f->keypoints) out->keypoints[index].emplace_back(kp.x, kp.y);
       f->descriptors.release();  // Only keypoints are needed from here on.
-      features[index] = std::move(*f);
-      indices.push_back(index);
+      out->features[index] = std::move(*f);
+      out->indices.push_back(index);
     }
   }
-  std::sort(indices.begin(), indices.end());
+  std::sort(out->indices.begin(), out->indices.end());
+  return Status::Ok();
+}
 
-  TwoViewGeometryOptions geometry;
-  std::vector<VerifiedPair> verified(chosen->size());
-  context.progress.Restart(chosen->size(), "pairs");
-  ParallelFor(
-      0, chosen->size(),
-      [&](std::size_t k) {
-        context.cancel.ThrowIfCanceled();
-        const ImagePair& pair = (*chosen)[k];
-        VerifiedPair& out = verified[k];
-        out.matches.image1 = pair.image1;
-        out.matches.image2 = pair.image2;
-        const std::vector<FeatureMatch> putative = MatchDescriptors(
-            descriptors.at(pair.image1), descriptors.at(pair.image2), MatchingOptions());
-        out.num_putative = static_cast<int>(putative.size());
-        const FeatureSet& f1 = features.at(pair.image1);
-        const FeatureSet& f2 = features.at(pair.image2);
-        std::vector<Eigen::Vector2d> points1, points2;
-        for (const FeatureMatch& m : putative) {
-          points1.emplace_back(f1.keypoints[m.index1].x, f1.keypoints[m.index1].y);
-          points2.emplace_back(f2.keypoints[m.index2].x, f2.keypoints[m.index2].y);
-        }
-        const TwoViewGeometryReport report =
-            EstimateTwoViewGeometry(points1, points2, geometry, &context.cancel);
-        context.cancel.ThrowIfCanceled();
-        out.type = report.type;
-        out.F = report.F;
-        out.H = report.H;
-        out.num_inliers_F = static_cast<int>(report.num_inliers_F);
-        out.num_inliers_H = static_cast<int>(report.num_inliers_H);
-        out.gric_F = report.gric_F;
-        out.gric_H = report.gric_H;
-        if (report.success) {
-          const std::vector<char>& mask = report.inlier_mask();
-          for (std::size_t i = 0; i < putative.size(); ++i) {
-            if (mask[i]) out.matches.matches.push_back(putative[i]);
-          }
-        }
-        if (report.success && report.type == TwoViewModelType::kFundamental) {
-          out.num_guided = AddGuidedMatches(descriptors.at(pair.image1),
-                                            descriptors.at(pair.image2), keypoints.at(pair.image1),
-                                            keypoints.at(pair.image2), report.F, &out.matches);
-        }
-        context.progress.Advance();
-      },
-      context.options.num_threads);
+// One pair: putative matches by descriptor, the two-view geometry and its inliers, then guided
+// matching along the epipolar lines when the pair has an F.
+VerifiedPair VerifyPair(const ImagePair& pair,
+                        const PairFeatures& in,
+                        const TwoViewGeometryOptions& geometry,
+                        const CancelToken& cancel) {
+  VerifiedPair out;
+  out.matches.image1 = pair.image1;
+  out.matches.image2 = pair.image2;
+  const std::vector<FeatureMatch> putative = MatchDescriptors(
+      in.descriptors.at(pair.image1), in.descriptors.at(pair.image2), MatchingOptions());
+  out.num_putative = static_cast<int>(putative.size());
+  const FeatureSet& f1 = in.features.at(pair.image1);
+  const FeatureSet& f2 = in.features.at(pair.image2);
+  std::vector<Eigen::Vector2d> points1, points2;
+  for (const FeatureMatch& m : putative) {
+    points1.emplace_back(f1.keypoints[m.index1].x, f1.keypoints[m.index1].y);
+    points2.emplace_back(f2.keypoints[m.index2].x, f2.keypoints[m.index2].y);
+  }
+  const TwoViewGeometryReport report = EstimateTwoViewGeometry(points1, points2, geometry, &cancel);
+  cancel.ThrowIfCanceled();
+  out.type = report.type;
+  out.F = report.F;
+  out.H = report.H;
+  out.num_inliers_F = static_cast<int>(report.num_inliers_F);
+  out.num_inliers_H = static_cast<int>(report.num_inliers_H);
+  out.gric_F = report.gric_F;
+  out.gric_H = report.gric_H;
+  if (report.success) {
+    const std::vector<char>& mask = report.inlier_mask();
+    for (std::size_t i = 0; i < putative.size(); ++i) {
+      if (mask[i]) out.matches.matches.push_back(putative[i]);
+    }
+  }
+  if (report.success && report.type == TwoViewModelType::kFundamental) {
+    out.num_guided = AddGuidedMatches(in.descriptors.at(pair.image1),
+                                      in.descriptors.at(pair.image2), in.keypoints.at(pair.image1),
+                                      in.keypoints.at(pair.image2), report.F, &out.matches);
+  }
+  return out;
+}
 
+// The verified pairs sorted out: those with matches (kept), one summary.json record per pair,
+// and the counts.
+struct MatchingTally {
   std::vector<VerifiedPair> usable;
   nlohmann::json summary_pairs = nlohmann::json::array();
   int num_f = 0, num_h = 0;
   std::size_t inliers = 0, guided = 0;
-  for (VerifiedPair& p : verified) {
-    summary_pairs.push_back(
+};
+
+MatchingTally Tally(std::vector<VerifiedPair>* verified) {
+  MatchingTally tally;
+  for (VerifiedPair& p : *verified) {
+    tally.summary_pairs.push_back(
         {{"image1", p.matches.image1},
          {"image2", p.matches.image2},
          {"model", TwoViewModelTypeName(p.type)},
@@ -226,42 +229,81 @@ StageResult MatchingStage::Run(StageContext& context) const {
          {"inliers_H", p.num_inliers_H},
          {"gric_F", std::isfinite(p.gric_F) ? nlohmann::json(p.gric_F) : nlohmann::json()},
          {"gric_H", std::isfinite(p.gric_H) ? nlohmann::json(p.gric_H) : nlohmann::json()}});
-    if (p.type == TwoViewModelType::kFundamental) ++num_f;
-    if (p.type == TwoViewModelType::kHomography) ++num_h;
-    guided += p.num_guided;
+    if (p.type == TwoViewModelType::kFundamental) ++tally.num_f;
+    if (p.type == TwoViewModelType::kHomography) ++tally.num_h;
+    tally.guided += p.num_guided;
     if (!p.matches.matches.empty()) {
-      inliers += p.matches.matches.size();
-      usable.push_back(std::move(p));
+      tally.inliers += p.matches.matches.size();
+      tally.usable.push_back(std::move(p));
     }
   }
-  if (Status s = WriteFileAtomically(context.stage_dir / "pairs.bin", Serialize(usable)); !s.ok()) {
-    return StageResult::Failed(s.message());
+  return tally;
+}
+
+// work/matching/pairs.bin and summary.json, and output/report/match_graph.png.
+Status WriteMatchingFiles(const StageContext& context,
+                          int num_images,
+                          const std::vector<int>& indices,
+                          const MatchingTally& tally) {
+  if (Status s = WriteFileAtomically(context.stage_dir / "pairs.bin", Serialize(tally.usable));
+      !s.ok()) {
+    return s;
   }
   if (Status s = WriteFileAtomically(context.stage_dir / "summary.json",
-                                     nlohmann::json{{"pairs", summary_pairs}}.dump(1) + "\n");
+                                     nlohmann::json{{"pairs", tally.summary_pairs}}.dump(1) + "\n");
       !s.ok()) {
-    return StageResult::Failed(s.message());
+    return s;
   }
   std::filesystem::create_directories(context.workspace.output_dir / "report");
   std::vector<std::uint8_t> png;
-  cv::imencode(".png", RenderMatchGraph(static_cast<int>(images->size()), indices, usable), png);
-  if (Status s = WriteFileAtomically(
-          context.workspace.output_dir / "report" / "match_graph.png",
-          std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  cv::imencode(".png", RenderMatchGraph(num_images, indices, tally.usable), png);
+  return WriteFileAtomically(
+      context.workspace.output_dir / "report" / "match_graph.png",
+      std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+}  // namespace
+
+StageResult MatchingStage::Run(StageContext& context) const {
+  auto images = ReadIngestedImages(context.workspace);
+  if (!images.ok()) return StageResult::Failed(images.status().message());
+  auto chosen = ReadImagePairs(context.workspace);
+  if (!chosen.ok()) return StageResult::Failed(chosen.status().message());
+  PairFeatures features;
+  if (Status s = ReadPairFeatures(context.workspace, *chosen, &features); !s.ok()) {
+    return StageResult::Failed(s.message());
+  }
+
+  const TwoViewGeometryOptions geometry;
+  std::vector<VerifiedPair> verified(chosen->size());
+  context.progress.Restart(chosen->size(), "pairs");
+  ParallelFor(
+      0, chosen->size(),
+      [&](std::size_t k) {
+        context.cancel.ThrowIfCanceled();
+        verified[k] = VerifyPair((*chosen)[k], features, geometry, context.cancel);
+        context.progress.Advance();
+      },
+      context.options.num_threads);
+
+  const MatchingTally tally = Tally(&verified);
+  if (Status s =
+          WriteMatchingFiles(context, static_cast<int>(images->size()), features.indices, tally);
       !s.ok()) {
     return StageResult::Failed(s.message());
   }
-  LOG_INFO << "matching: " << verified.size() << " pairs, " << num_f << " with epipolar geometry, "
-           << num_h << " planar or rotation-only, " << inliers << " inlier matches (" << guided
+  LOG_INFO << "matching: " << verified.size() << " pairs, " << tally.num_f
+           << " with epipolar geometry, " << tally.num_h << " planar or rotation-only, "
+           << tally.inliers << " inlier matches (" << tally.guided
            << " of them from guided matching)";
-  if (usable.empty()) {
+  if (tally.usable.empty()) {
     return StageResult::Degenerate("no pair of photos could be matched: do the photos overlap?");
   }
   return StageResult::Success({{"pairs", verified.size()},
-                               {"fundamental", num_f},
-                               {"homography", num_h},
-                               {"inlier_matches", inliers},
-                               {"guided_matches", guided}});
+                               {"fundamental", tally.num_f},
+                               {"homography", tally.num_h},
+                               {"inlier_matches", tally.inliers},
+                               {"guided_matches", tally.guided}});
 }
 
 Result<std::vector<VerifiedPair>> ReadVerifiedPairs(const Workspace& workspace) {

@@ -1,17 +1,13 @@
 #include "core/pipeline/stages/sparse_stage.h"
 
 #include "core/image/image_reader.h"
-#include "core/io/bundler.h"
-#include "core/io/cameras_json.h"
-#include "core/io/colmap_text.h"
 #include "core/io/file_util.h"
-#include "core/io/ply.h"
 #include "core/io/reconstruction_json.h"
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/matching_stage.h"
 #include "core/sfm/incremental_mapper.h"
-#include "core/sfm/self_calibration.h"
+#include "core/sfm/initial_calibration.h"
 #include "core/sfm/tracks.h"
 #include "core/util/logging.h"
 #include "core/util/parallel.h"
@@ -23,11 +19,6 @@
 
 namespace reconduit {
 namespace {
-
-// Minimum inliers for a pair's F to take part in self-calibration.
-constexpr int kMinSelfCalibrationInliers = 50;
-// EXIF and self-calibration "disagree" beyond this relative difference.
-constexpr double kFocalDisagreement = 0.15;
 
 // Radial distortion (k1, k2) is refined only when the matched keypoints reach out into the
 // photos: this share of the half-diagonal (see ObservationReach). Near the centre the radial
@@ -65,11 +56,6 @@ double ObservationReach(const MapperInput& input) {
   const auto q = reach.begin() + static_cast<std::ptrdiff_t>(0.95 * (reach.size() - 1));
   std::nth_element(reach.begin(), q, reach.end());
   return *q;
-}
-
-double MedianOf(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
 }
 
 // Mean colour of every point's observations, read from the photos (in parallel).
@@ -121,26 +107,21 @@ void ColourPoints(const std::vector<IngestedImage>& images,
   }
 }
 
-}  // namespace
-
-StageResult SparseStage::Run(StageContext& context) const {
-  const Workspace& workspace = context.workspace;
-  auto images = ReadIngestedImages(workspace);
-  if (!images.ok()) return StageResult::Failed(images.status().message());
-  auto pairs = ReadVerifiedPairs(workspace);
-  if (!pairs.ok()) return StageResult::Failed(pairs.status().message());
-
-  // Cameras: one per camera key.
-  MapperInput input;
+// The accepted photos as the mapper's images with their keypoints. Photos that share a camera
+// key share a camera, numbered 0, 1, ... in order of first appearance; `members` lists each
+// camera's photos.
+Status AddImagesByCamera(const Workspace& workspace,
+                         const std::vector<IngestedImage>& images,
+                         MapperInput* input,
+                         std::map<int, std::vector<const IngestedImage*>>* members) {
   std::map<std::string, int> camera_of_key;
-  std::map<int, std::vector<const IngestedImage*>> members;
-  for (const IngestedImage& image : *images) {
+  for (const IngestedImage& image : images) {
     if (!image.accepted) continue;
     auto [it, inserted] =
         camera_of_key.try_emplace(image.camera_key, static_cast<int>(camera_of_key.size()));
-    members[it->second].push_back(&image);
+    (*members)[it->second].push_back(&image);
     auto features = ReadImageFeatures(workspace, image.index);
-    if (!features.ok()) return StageResult::Failed(features.status().message());
+    if (!features.ok()) return features.status();
     MapperImage mapper_image;
     mapper_image.name = image.name;
     mapper_image.camera_id = it->second;
@@ -148,76 +129,95 @@ StageResult SparseStage::Run(StageContext& context) const {
       mapper_image.keypoints.emplace_back(kp.x, kp.y);
       mapper_image.keypoint_stddevs.push_back(KeypointStddev(kp));
     }
-    input.images[image.index] = std::move(mapper_image);
+    input->images[image.index] = std::move(mapper_image);
   }
+  return Status::Ok();
+}
 
-  nlohmann::json calibration = nlohmann::json::array();
+// What core/sfm/initial_calibration.h needs to know about camera `camera_id`: its size, its
+// photos' EXIF focal lengths, and the fundamental matrices of pairs of its photos.
+InitialCalibrationInput CalibrationInputOf(int camera_id,
+                                           const std::vector<const IngestedImage*>& photos,
+                                           const std::vector<VerifiedPair>& pairs,
+                                           const MapperInput& input) {
+  InitialCalibrationInput calibration;
+  calibration.width = photos.front()->width;
+  calibration.height = photos.front()->height;
+  for (const IngestedImage* p : photos) {
+    if (p->exif_focal_px) calibration.exif_focals.push_back(*p->exif_focal_px);
+  }
+  auto of_camera = [&](int image_id) {
+    auto it = input.images.find(image_id);
+    return it != input.images.end() && it->second.camera_id == camera_id;
+  };
+  for (const VerifiedPair& pair : pairs) {
+    if (pair.type == TwoViewModelType::kFundamental && of_camera(pair.matches.image1) &&
+        of_camera(pair.matches.image2)) {
+      calibration.fundamentals.push_back({pair.F, pair.num_inliers_F});
+    }
+  }
+  return calibration;
+}
+
+// The camera's record in work/sparse/calibration.json (and the stage summary), and the log
+// lines a person reads about it.
+nlohmann::json CalibrationRecord(int camera_id,
+                                 std::size_t num_photos,
+                                 const InitialCalibration& c) {
+  const Camera& camera = c.camera;
+  nlohmann::json record = {{"camera_id", camera_id},
+                           {"photos", num_photos},
+                           {"width", camera.width},
+                           {"height", camera.height},
+                           {"pairs", c.num_pairs}};
+  if (c.self_calibration) {
+    record["self_calibrated_focal"] = c.self_calibration->focal;
+    record["self_calibration_pairs_agreeing"] = c.self_calibration->num_agreeing;
+    record["self_calibration_spread"] = c.self_calibration->spread;
+  } else {
+    record["self_calibration"] = c.self_calibration_error;
+  }
+  if (c.exif_focal) record["exif_focal"] = *c.exif_focal;
+  record["initial_focal_source"] = std::string(InitialFocalSourceName(c.source));
+  if (!c.warning.empty()) record["warning"] = c.warning;
+  record["initial_focal"] = camera.focal;
+
+  if (c.source == InitialFocalSource::kExif && !c.warning.empty()) {
+    LOG_WARNING << "sparse: camera " << camera_id << ": EXIF focal " << camera.focal
+                << " px disagrees with self-calibration " << c.self_calibration->focal << " px";
+  } else if (c.source == InitialFocalSource::kDefault) {
+    LOG_WARNING << "sparse: camera " << camera_id << ": " << c.self_calibration_error
+                << "; searching for the focal from " << camera.focal << " px";
+  }
+  LOG_INFO << "sparse: camera " << camera_id << " (" << num_photos << " photos, " << camera.width
+           << "x" << camera.height << "): initial focal " << camera.focal << " px from "
+           << InitialFocalSourceName(c.source);
+  return record;
+}
+
+// Every camera's initial calibration into `input` (cameras, and those whose focal is a guess
+// for the mapper to search for); returns the cameras' calibration records.
+nlohmann::json CalibrateCameras(const std::map<int, std::vector<const IngestedImage*>>& members,
+                                const std::vector<VerifiedPair>& pairs,
+                                const PipelineOptions& options,
+                                MapperInput* input) {
+  InitialCalibrationOptions calibration_options;
+  calibration_options.use_exif = options.use_exif;
+  nlohmann::json records = nlohmann::json::array();
   for (const auto& [camera_id, photos] : members) {
-    const IngestedImage& first = *photos.front();
-    Camera camera =
-        Camera::FromFocal(first.width, first.height, 1.2 * std::max(first.width, first.height));
-    std::vector<double> exif;
-    for (const IngestedImage* p : photos) {
-      if (p->exif_focal_px) exif.push_back(*p->exif_focal_px);
-    }
-    std::vector<Eigen::Matrix3d> fundamentals;
-    for (const VerifiedPair& pair : *pairs) {
-      if (pair.type != TwoViewModelType::kFundamental ||
-          pair.num_inliers_F < kMinSelfCalibrationInliers)
-        continue;
-      if (input.images.count(pair.matches.image1) && input.images.count(pair.matches.image2) &&
-          input.images.at(pair.matches.image1).camera_id == camera_id &&
-          input.images.at(pair.matches.image2).camera_id == camera_id) {
-        fundamentals.push_back(pair.F);
-      }
-    }
-    const auto self = EstimateSharedFocal(fundamentals, camera.cx, camera.cy,
-                                          DefaultFocalRange(camera.width, camera.height));
-    nlohmann::json record = {{"camera_id", camera_id},
-                             {"photos", photos.size()},
-                             {"width", camera.width},
-                             {"height", camera.height},
-                             {"pairs", fundamentals.size()}};
-    if (self.ok()) {
-      record["self_calibrated_focal"] = self->focal;
-      record["self_calibration_pairs_agreeing"] = self->num_agreeing;
-      record["self_calibration_spread"] = self->spread;
-    } else {
-      record["self_calibration"] = self.status().message();
-    }
-    if (!exif.empty()) record["exif_focal"] = MedianOf(exif);
-    if (context.options.use_exif && !exif.empty()) {
-      camera.focal = MedianOf(exif);
-      record["initial_focal_source"] = "exif";
-      if (self.ok() && std::abs(self->focal / camera.focal - 1.0) > kFocalDisagreement) {
-        LOG_WARNING << "sparse: camera " << camera_id << ": EXIF focal " << camera.focal
-                    << " px disagrees with self-calibration " << self->focal << " px";
-        record["warning"] = "EXIF focal length and self-calibration disagree by more than 15 %";
-      }
-    } else if (self.ok()) {
-      camera.focal = self->focal;
-      record["initial_focal_source"] = "self_calibration";
-    } else {
-      record["initial_focal_source"] = "default";
-      record["warning"] =
-          "no EXIF focal length and self-calibration from photo pairs was not possible; the "
-          "focal length was searched with trial reconstructions from 1.2 x the longer side";
-      LOG_WARNING << "sparse: camera " << camera_id << ": " << self.status().message()
-                  << "; searching for the focal from " << camera.focal << " px";
-    }
-    record["initial_focal"] = camera.focal;
-    LOG_INFO << "sparse: camera " << camera_id << " (" << photos.size() << " photos, "
-             << camera.width << "x" << camera.height << "): initial focal " << camera.focal
-             << " px from " << record["initial_focal_source"].get<std::string>();
-    input.cameras[camera_id] = camera;
-    // A guess: the mapper searches for the focal with small trial reconstructions first.
-    if (record["initial_focal_source"] == "default")
-      input.uncertain_focal_camera_ids.insert(camera_id);
-    calibration.push_back(record);
+    const InitialCalibration c = EstimateInitialCalibration(
+        CalibrationInputOf(camera_id, photos, pairs, *input), calibration_options);
+    records.push_back(CalibrationRecord(camera_id, photos.size(), c));
+    input->cameras[camera_id] = c.camera;
+    if (c.UncertainFocal()) input->uncertain_focal_camera_ids.insert(camera_id);
   }
+  return records;
+}
 
+// The verified pairs for the mapper, and the tracks they make.
+void AddPairsAndTracks(const std::vector<VerifiedPair>& pairs, MapperInput* input) {
   std::vector<PairMatches> pair_matches;
-  for (const VerifiedPair& pair : *pairs) {
+  for (const VerifiedPair& pair : pairs) {
     pair_matches.push_back(pair.matches);
     MapperPair mp;
     mp.image1 = pair.matches.image1;
@@ -226,45 +226,48 @@ StageResult SparseStage::Run(StageContext& context) const {
     mp.num_inliers_F = pair.num_inliers_F;
     mp.num_inliers_H = pair.num_inliers_H;
     mp.matches = pair.matches.matches;
-    input.pairs.push_back(std::move(mp));
+    input->pairs.push_back(std::move(mp));
   }
   TrackStatistics track_stats;
-  input.tracks = BuildTracks(pair_matches, 2, &track_stats);
+  input->tracks = BuildTracks(pair_matches, 2, &track_stats);
   LOG_INFO << "sparse: " << track_stats.num_tracks << " tracks, " << track_stats.num_observations
            << " observations (" << track_stats.num_conflicting_matches
            << " matches refused: they would join two keypoints of one photo)";
+}
 
+// The mapper's options from the pipeline's: the principal-point mode, and radial distortion
+// refined only when the observations reach far enough out (kMinDistortionReach).
+IncrementalMapperOptions MapperOptionsFor(const PipelineOptions& options, double reach) {
   IncrementalMapperOptions mapper_options;
-  mapper_options.principal_point =
-      context.options.principal_point == "center"   ? PrincipalPointMode::kCenter
-      : context.options.principal_point == "refine" ? PrincipalPointMode::kRefine
-                                                    : PrincipalPointMode::kAuto;
-  const double reach = ObservationReach(input);
+  mapper_options.principal_point = options.principal_point == "center" ? PrincipalPointMode::kCenter
+                                   : options.principal_point == "refine"
+                                       ? PrincipalPointMode::kRefine
+                                       : PrincipalPointMode::kAuto;
   mapper_options.refine_distortion = reach >= kMinDistortionReach;
   if (!mapper_options.refine_distortion) {
     LOG_INFO << "sparse: matched keypoints reach " << reach
              << " of the half-diagonal; radial distortion held at zero";
   }
-  MapperSummary summary;
-  std::vector<Reconstruction> models =
-      ReconstructIncrementally(input, mapper_options, context.progress, context.cancel, &summary);
-  for (nlohmann::json& record : calibration) {
+  return mapper_options;
+}
+
+// Adds to each camera's record the focal the mapper's focal search started from.
+void RecordSearchedFocals(const MapperSummary& summary, nlohmann::json* calibration) {
+  for (nlohmann::json& record : *calibration) {
     auto searched = summary.searched_focal.find(record["camera_id"].get<int>());
     if (searched != summary.searched_focal.end()) record["searched_focal"] = searched->second;
   }
-  if (models.empty()) {
-    return StageResult::Degenerate(
-        "no reconstruction: no pair of photos had enough parallax and matches to start from");
-  }
+}
 
-  for (Reconstruction& model : models)
-    ColourPoints(*images, context.options, context.cancel, &model);
-  // The largest model's calibration and its precision (one standard deviation, from the
-  // final bundle adjustment; absent when it could not be estimated).
-  for (nlohmann::json& record : calibration) {
+// Adds to each camera's record the largest model's calibration and its precision (one
+// standard deviation, from the final bundle adjustment; absent when it could not be estimated).
+void RecordFinalCalibration(const Reconstruction& best,
+                            const MapperSummary& summary,
+                            nlohmann::json* calibration) {
+  for (nlohmann::json& record : *calibration) {
     const int id = record["camera_id"].get<int>();
-    auto camera = models.front().cameras.find(id);
-    if (camera == models.front().cameras.end()) continue;
+    auto camera = best.cameras.find(id);
+    if (camera == best.cameras.end()) continue;
     record["final_focal"] = camera->second.focal;
     auto stddev = summary.intrinsics_stddev.find(id);
     if (stddev == summary.intrinsics_stddev.end()) continue;
@@ -274,10 +277,12 @@ StageResult SparseStage::Run(StageContext& context) const {
              << " px (1 sigma), principal point (" << camera->second.cx << " +- " << s.cx << ", "
              << camera->second.cy << " +- " << s.cy << ")";
   }
+}
 
+// Each model's size, error and cameras, for calibration.json.
+nlohmann::json ModelSummaries(const std::vector<Reconstruction>& models) {
   nlohmann::json model_summaries = nlohmann::json::array();
-  for (std::size_t k = 0; k < models.size(); ++k) {
-    const Reconstruction& model = models[k];
+  for (const Reconstruction& model : models) {
     nlohmann::json cameras = nlohmann::json::array();
     for (const auto& [id, camera] : model.cameras) {
       cameras.push_back({{"camera_id", id},
@@ -293,37 +298,66 @@ StageResult SparseStage::Run(StageContext& context) const {
                                {"mean_reprojection_error_px", model.MeanReprojectionError()},
                                {"cameras", cameras}});
   }
-  if (Status s = WriteFileAtomically(
-          context.stage_dir / "calibration.json",
-          nlohmann::json{{"cameras", calibration},
-                         {"observation_reach", reach},
-                         {"distortion_refined", mapper_options.refine_distortion},
-                         {"models", model_summaries},
-                         {"log", summary.log}}
-                  .dump(2) +
-              "\n");
+  return model_summaries;
+}
+
+// work/sparse/calibration.json and model_<k>.json (largest first).
+Status WriteStageFiles(const std::filesystem::path& stage_dir,
+                       const nlohmann::json& calibration_json,
+                       const std::vector<Reconstruction>& models) {
+  if (Status s =
+          WriteFileAtomically(stage_dir / "calibration.json", calibration_json.dump(2) + "\n");
       !s.ok()) {
-    return StageResult::Failed(s.message());
+    return s;
   }
   for (std::size_t k = 0; k < models.size(); ++k) {
-    const Status s = WriteReconstructionJson(
-        context.stage_dir / ("model_" + std::to_string(k) + ".json"), models[k]);
-    if (!s.ok()) return StageResult::Failed(s.message());
+    const Status s =
+        WriteReconstructionJson(stage_dir / ("model_" + std::to_string(k) + ".json"), models[k]);
+    if (!s.ok()) return s;
   }
-  // Deliverables of the largest model, as they appear in result.zip.
+  return Status::Ok();
+}
+
+}  // namespace
+
+StageResult SparseStage::Run(StageContext& context) const {
+  const Workspace& workspace = context.workspace;
+  auto images = ReadIngestedImages(workspace);
+  if (!images.ok()) return StageResult::Failed(images.status().message());
+  auto pairs = ReadVerifiedPairs(workspace);
+  if (!pairs.ok()) return StageResult::Failed(pairs.status().message());
+
+  MapperInput input;
+  std::map<int, std::vector<const IngestedImage*>> members;
+  if (Status s = AddImagesByCamera(workspace, *images, &input, &members); !s.ok())
+    return StageResult::Failed(s.message());
+  nlohmann::json calibration = CalibrateCameras(members, *pairs, context.options, &input);
+  AddPairsAndTracks(*pairs, &input);
+
+  const double reach = ObservationReach(input);
+  const IncrementalMapperOptions mapper_options = MapperOptionsFor(context.options, reach);
+  MapperSummary summary;
+  std::vector<Reconstruction> models =
+      ReconstructIncrementally(input, mapper_options, context.progress, context.cancel, &summary);
+  RecordSearchedFocals(summary, &calibration);
+  if (models.empty()) {
+    return StageResult::Degenerate(
+        "no reconstruction: no pair of photos had enough parallax and matches to start from");
+  }
+
+  for (Reconstruction& model : models)
+    ColourPoints(*images, context.options, context.cancel, &model);
   const Reconstruction& best = models.front();
-  std::vector<std::string> unregistered;
-  for (const IngestedImage& image : *images) {
-    if (image.accepted && !best.images.count(image.index)) unregistered.push_back(image.name);
-  }
-  const std::filesystem::path out = workspace.output_dir;
-  std::filesystem::create_directories(out / "sparse");
-  std::filesystem::create_directories(out / "bundle");
-  for (const Status& s :
-       {WriteCamerasJson(out / "cameras.json", best, unregistered),
-        WriteColmapText(out / "sparse", best), WriteBundler(out / "bundle", best),
-        WritePointCloudPly(out / "sparse.ply", PointCloudFromReconstruction(best))}) {
-    if (!s.ok()) return StageResult::Failed(s.message());
+  RecordFinalCalibration(best, summary, &calibration);
+  if (Status s = WriteStageFiles(context.stage_dir,
+                                 {{"cameras", calibration},
+                                  {"observation_reach", reach},
+                                  {"distortion_refined", mapper_options.refine_distortion},
+                                  {"models", ModelSummaries(models)},
+                                  {"log", summary.log}},
+                                 models);
+      !s.ok()) {
+    return StageResult::Failed(s.message());
   }
   // "registered" counts the photos of the delivered (largest) model only; photos in smaller
   // disconnected models are counted apart.

@@ -1,0 +1,176 @@
+#include "core/pipeline/stages/export_stage.h"
+
+#include "core/io/bundler.h"
+#include "core/io/cameras_json.h"
+#include "core/io/colmap_text.h"
+#include "core/io/file_util.h"
+#include "core/io/ply.h"
+#include "core/io/reconstruction_json.h"
+#include "core/pipeline/stages/ingest_stage.h"
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <unistd.h>
+
+namespace reconduit {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Every file under `dir`, relative path -> bytes.
+std::map<std::string, std::string> FilesUnder(const fs::path& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    if (!entry.is_regular_file()) continue;
+    auto bytes = ReadFile(entry.path());
+    EXPECT_TRUE(bytes.ok()) << entry.path();
+    files[fs::relative(entry.path(), dir).generic_string()] = bytes.ok() ? *bytes : "";
+  }
+  return files;
+}
+
+// Three registered photos of two cameras (with distortion, poses and points whose doubles
+// need every digit), one accepted photo left out of the model and one refused.
+Reconstruction MakeModel() {
+  Reconstruction rec;
+  Camera a = Camera::FromFocal(640, 480, 700.0 / 3.0 * 4.0);
+  a.k1 = -0.0123456789;
+  a.k2 = 0.001 / 7.0;
+  rec.cameras[0] = a;
+  rec.cameras[1] = Camera::FromFocal(480, 640, 601.25);
+  const char* names[] = {"a.jpg", "b.jpg", "", "d.jpg"};
+  for (int id : {0, 1, 3}) {
+    RegisteredImage image;
+    image.image_id = id;
+    image.camera_id = id == 3 ? 1 : 0;
+    image.name = names[id];
+    image.cam_from_world =
+        Rigid3d(Eigen::AngleAxisd(0.1 * id + 1.0 / 7.0, Eigen::Vector3d(1, 2, 3).normalized())
+                    .toRotationMatrix(),
+                Eigen::Vector3d(0.3 * id, -1.0 / 3.0, 5.0 + id / 11.0));
+    for (int k = 0; k < 6; ++k) image.keypoints.emplace_back(10.5 + 37.1 * k + id, 20.25 + 13 * k);
+    image.point_for_keypoint.assign(image.keypoints.size(), kInvalidId);
+    rec.images[id] = image;
+  }
+  for (int k = 0; k < 5; ++k) {
+    const int id = rec.AddPoint(Eigen::Vector3d(k / 3.0, -k / 7.0, 4.0 + k / 9.0),
+                                {{0, k}, {1, k + 1}, {3, 5 - k}});
+    rec.points[id].rgb = {static_cast<std::uint8_t>(40 * k), 200, static_cast<std::uint8_t>(k)};
+    rec.points[id].error = 0.1 + k / 13.0;
+  }
+  return rec;
+}
+
+class ExportStageTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() / ("reconduit_export_stage_test_" + std::to_string(getpid()));
+    fs::remove_all(root_);
+    workspace_.images = {{"a.jpg", "a.jpg"},
+                         {"b.jpg", "b.jpg"},
+                         {"c.jpg", "c.jpg"},
+                         {"d.jpg", "d.jpg"},
+                         {"e.txt", "e.txt"}};
+    workspace_.work_dir = root_ / "work";
+    workspace_.output_dir = root_ / "output";
+    fs::create_directories(workspace_.StageDir("ingest"));
+    fs::create_directories(workspace_.StageDir("sparse"));
+    fs::create_directories(workspace_.StageDir("export"));
+    nlohmann::json images = nlohmann::json::array();
+    for (int i = 0; i < 5; ++i) {
+      IngestedImage image;
+      image.index = i;
+      image.name = workspace_.images[i].name;
+      image.path = workspace_.images[i].path;
+      image.accepted = i < 4;
+      if (!image.accepted) image.reason = "not a photo";
+      image.width = i == 3 ? 480 : 640;
+      image.height = i == 3 ? 640 : 480;
+      images.push_back(image.ToJson());
+    }
+    ASSERT_TRUE(WriteFileAtomically(workspace_.StageDir("ingest") / "images.json",
+                                    nlohmann::json{{"images", images}}.dump())
+                    .ok());
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  StageResult RunExport(const std::vector<StageRecord>& previous) {
+    Progress progress;
+    const CancelToken cancel;
+    const PipelineOptions options;
+    StageContext context{workspace_, options,  progress,
+                         cancel,     previous, workspace_.StageDir("export")};
+    return ExportStage().Run(context);
+  }
+
+  static std::vector<StageRecord> SparseSucceeded() {
+    StageRecord ingest, sparse;
+    ingest.name = "ingest";
+    ingest.status = StageStatus::kSuccess;
+    sparse.name = "sparse";
+    sparse.status = StageStatus::kSuccess;
+    return {ingest, sparse};
+  }
+
+  fs::path root_;
+  Workspace workspace_;
+};
+
+TEST_F(ExportStageTest, WritesTheSparseDeliverablesAsTheModelInMemoryWouldGive) {
+  const Reconstruction model = MakeModel();
+  ASSERT_TRUE(WriteReconstructionJson(workspace_.StageDir("sparse") / "model_0.json", model).ok());
+  const StageResult result = RunExport(SparseSucceeded());
+  ASSERT_EQ(result.status, StageStatus::kSuccess) << result.message;
+  EXPECT_EQ(result.summary["exported"], "sparse");
+  EXPECT_EQ(result.summary["deliverables"], 7);
+
+  // The same bytes as the writers give from the model in memory, the photo accepted but not
+  // registered (c.jpg) listed as such.
+  const fs::path expected = root_ / "expected";
+  fs::create_directories(expected / "sparse");
+  fs::create_directories(expected / "bundle");
+  ASSERT_TRUE(WriteCamerasJson(expected / "cameras.json", model, {"c.jpg"}).ok());
+  ASSERT_TRUE(WriteColmapText(expected / "sparse", model).ok());
+  ASSERT_TRUE(WriteBundler(expected / "bundle", model).ok());
+  ASSERT_TRUE(
+      WritePointCloudPly(expected / "sparse.ply", PointCloudFromReconstruction(model)).ok());
+  const auto want = FilesUnder(expected);
+  const auto got = FilesUnder(workspace_.output_dir);
+  ASSERT_EQ(want.size(), 7u);
+  EXPECT_EQ(got, want);
+  EXPECT_NE(got.at("cameras.json").find("c.jpg"), std::string::npos);
+}
+
+TEST_F(ExportStageTest, ExportsNothingForStagesThatDidNotRun) {
+  // A run stopped before sparse (--until matching): a stale model in work/ is not exported.
+  ASSERT_TRUE(
+      WriteReconstructionJson(workspace_.StageDir("sparse") / "model_0.json", MakeModel()).ok());
+  StageRecord ingest;
+  ingest.name = "ingest";
+  ingest.status = StageStatus::kSuccess;
+  const StageResult result = RunExport({ingest});
+  ASSERT_EQ(result.status, StageStatus::kSuccess) << result.message;
+  EXPECT_EQ(result.summary["exported"], "");
+  EXPECT_EQ(result.summary["deliverables"], 0);
+  EXPECT_FALSE(fs::exists(workspace_.output_dir / "cameras.json"));
+  EXPECT_FALSE(fs::exists(workspace_.output_dir / "sparse.ply"));
+}
+
+TEST_F(ExportStageTest, AMissingModelFailsTheStage) {
+  const StageResult result = RunExport(SparseSucceeded());
+  EXPECT_EQ(result.status, StageStatus::kFailed);
+  EXPECT_NE(result.message.find("sparse: "), std::string::npos) << result.message;
+  EXPECT_NE(result.message.find("model_0.json"), std::string::npos) << result.message;
+}
+
+TEST(ExportStage, IsNotResumable) {
+  // output/ is rebuilt on every run (see export_stage.h).
+  EXPECT_FALSE(ExportStage().Resumable());
+  EXPECT_EQ(ExportStage().Name(), "export");
+}
+
+}  // namespace
+}  // namespace reconduit
