@@ -20,7 +20,7 @@ constexpr char kUsage[] =
     "\n"
     "reconstruct  runs the pipeline on every file in <images_dir> (files that are not usable\n"
     "             photos are reported and skipped) and writes the results to <out_dir>.\n"
-    "  --until STAGE   stop after this stage (then pack what exists); stages: {stages}\n"
+    "  --until STAGE   stop after this stage (then export and pack what exists); stages: {stages}\n"
     "  --options FILE  pipeline options as a JSON object (see `reconduit options`)\n"
     "  --work DIR      intermediate files (default <out_dir>.work); rerunning resumes there\n"
     "  --threads N     threads for parallel stages (default: all cores)\n"
