@@ -24,8 +24,7 @@
 #ifndef RECONDUIT_CORE_MVS_PATCH_MATCH_H_
 #define RECONDUIT_CORE_MVS_PATCH_MATCH_H_
 
-#include "core/geometry/camera.h"
-#include "core/geometry/rigid3.h"
+#include "core/mvs/mvs_view.h"
 #include "core/util/cancel.h"
 
 #include <Eigen/Core>
@@ -36,15 +35,6 @@
 #include <vector>
 
 namespace reconduit {
-
-// A photo prepared for dense matching.
-struct MvsView {
-  // CV_32FC1 grey levels (any scale; NCC does not care), camera.height x camera.width.
-  cv::Mat gray;
-  // Pinhole camera at this image's resolution; k1 and k2 must be 0 (undistorted image).
-  Camera camera;
-  Rigid3d cam_from_world;
-};
 
 struct PatchMatchOptions {
   // The matching window is (2 radius + 1)^2 pixels, sampled every `window_step` pixels in x and
