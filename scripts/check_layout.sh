@@ -2,7 +2,8 @@
 # The layout rules of docs (README "What is in the box", issue 9), checked on the source tree:
 #   - the programs' folders do not include each other: server/ nothing of worker/ or cli/,
 #     worker/ nothing of server/ or cli/, cli/ nothing of server/; store/ and core/ nothing of
-#     the programs; core/ nothing of store/;
+#     the programs; core/ nothing of store/; store/ nothing of core/ beyond util and the
+#     header-only core/image/photo_metadata.h;
 #   - no function outside the tests is longer than 120 lines (scripts/long_functions.py);
 #   - with a build folder given: reconduit-server does not link Ceres (the server stays light).
 # Usage: scripts/check_layout.sh [BUILD_DIR]; exits 1 naming what breaks a rule.
@@ -20,7 +21,13 @@ forbid() {  # forbid FOLDER PATTERN: no file under FOLDER includes a header matc
 forbid server 'worker|cli'
 forbid worker 'server|cli'
 forbid cli 'server'
-forbid store 'server|worker|cli|core/(pipeline|sfm|feature|image|io)'
+forbid store 'server|worker|cli|core/(pipeline|sfm|feature|io)'
+# Of core/image, the store includes only the header-only photo_metadata.h (no library).
+hits=$(grep -rnE '^#include "core/image/' store --include='*.h' --include='*.cc' |
+  grep -v '"core/image/photo_metadata.h"' || true)
+if [ -n "$hits" ]; then
+  echo "layout: store/ must not include core/image/ beyond photo_metadata.h:"; echo "$hits"; status=1
+fi
 forbid core 'server|worker|cli|store'
 
 python3 scripts/long_functions.py --max 120 || status=1

@@ -57,9 +57,7 @@ bool IsValidJobId(std::string_view id) {
   return true;
 }
 
-std::string_view ImageStatusName(ImageStatus status) {
-  return status == ImageStatus::kAccepted ? "accepted" : "rejected";
-}
+std::string_view ImageStatusName(bool accepted) { return accepted ? "accepted" : "rejected"; }
 
 std::string_view EventLevelName(LogLevel level) {
   switch (level) {

@@ -28,6 +28,7 @@
 #ifndef RECONDUIT_STORE_JOB_STORE_H_
 #define RECONDUIT_STORE_JOB_STORE_H_
 
+#include "core/image/photo_metadata.h"
 #include "core/util/logging.h"
 #include "core/util/status.h"
 
@@ -68,9 +69,9 @@ bool IsValidJobId(std::string_view id);
 
 // ---- Records ------------------------------------------------------------------------------------
 
-enum class ImageStatus { kAccepted, kRejected };
-// "accepted", "rejected".
-std::string_view ImageStatusName(ImageStatus status);
+// "accepted" or "rejected" (PhotoMetadata::accepted): the names used in the database and the
+// HTTP API.
+std::string_view ImageStatusName(bool accepted);
 
 // One uploaded photo (a row of `images`).
 struct JobImageRecord {
@@ -80,18 +81,10 @@ struct JobImageRecord {
   std::string original_name;
   // Generated file name under data/jobs/<id>/input/, e.g. "0001.jpg": no '/', '\\', "." or "..".
   std::string stored_name;
-  std::int64_t bytes = 0;
-  // Pixel size when the photo decoded.
-  std::optional<int> width;
-  std::optional<int> height;
-  // Focal length in pixels from EXIF, when present (a prior for self-calibration).
-  std::optional<double> exif_focal_px;
-  // EXIF camera make and model; empty when unknown.
-  std::string make;
-  std::string model;
-  ImageStatus status = ImageStatus::kAccepted;
-  // Why a rejected photo was rejected ("truncated JPEG"); empty for accepted photos.
-  std::string reject_reason;
+  // Size, pixel size (0 x 0 when the header could not be read: NULL in the database), EXIF
+  // focal prior, make, model, acceptance and the reason for a rejection ("truncated JPEG").
+  // photo.focal_source is not stored (empty when read back).
+  PhotoMetadata photo;
 
   friend bool operator==(const JobImageRecord&, const JobImageRecord&) = default;
 };

@@ -116,13 +116,13 @@ TEST(NewJobId, Is128RandomBitsInHex) {
 
 TEST_F(JobStoreTest, CreateStoresTheJobAndItsPhotos) {
   NewJob new_job = MakeNewJob(3);
-  new_job.images[1].status = ImageStatus::kRejected;
-  new_job.images[1].reject_reason = "truncated JPEG";
-  new_job.images[1].width.reset();
-  new_job.images[1].height.reset();
-  new_job.images[2].exif_focal_px = 1234.5;
-  new_job.images[2].make = "Canon";
-  new_job.images[2].model = "EOS 5D";
+  new_job.images[1].photo.accepted = false;
+  new_job.images[1].photo.reason = "truncated JPEG";
+  new_job.images[1].photo.width = 0;
+  new_job.images[1].photo.height = 0;
+  new_job.images[2].photo.exif_focal_px = 1234.5;
+  new_job.images[2].photo.make = "Canon";
+  new_job.images[2].photo.model = "EOS 5D";
   const Job created = Create(new_job);
 
   EXPECT_TRUE(IsValidJobId(created.id));
@@ -176,7 +176,7 @@ TEST_F(JobStoreTest, CreateValidatesItsInput) {
   EXPECT_EQ(store_->CreateJob(bad_id).status().code(), StatusCode::kInvalidArgument);
 
   NewJob no_accepted = MakeNewJob(1);
-  no_accepted.images[0].status = ImageStatus::kRejected;
+  no_accepted.images[0].photo.accepted = false;
   EXPECT_THAT(store_->CreateJob(no_accepted).status().message(),
               HasSubstr("at least one accepted photo"));
   EXPECT_EQ(store_->CreateJob(NewJob{}).status().code(), StatusCode::kInvalidArgument);

@@ -243,11 +243,11 @@ Status CheckNewJob(const std::string& id, const NewJob& job) {
     if (!IsSafeStoredName(image.stored_name)) {
       return Status::InvalidArgument("unsafe stored file name " + Quote(image.stored_name));
     }
-    if (image.index < 0 || image.bytes < 0) {
+    if (image.index < 0 || image.photo.bytes < 0) {
       return Status::InvalidArgument("image " + Quote(image.stored_name) +
                                      " has a negative index or size");
     }
-    any_accepted = any_accepted || image.status == ImageStatus::kAccepted;
+    any_accepted = any_accepted || image.photo.accepted;
   }
   if (!any_accepted) return Status::InvalidArgument("a job needs at least one accepted photo");
   return Status::Ok();
@@ -488,9 +488,9 @@ Result<Job> SqliteJobStore::CreateJob(const NewJob& new_job) {
     const std::string id = new_job.id.empty() ? NewJobId() : new_job.id;
     if (Status s = CheckNewJob(id, new_job); !s.ok()) return s;
     const std::string options = new_job.options.is_null() ? "{}" : DumpJson(new_job.options);
-    const auto accepted = std::count_if(
-        new_job.images.begin(), new_job.images.end(),
-        [](const JobImageRecord& image) { return image.status == ImageStatus::kAccepted; });
+    const auto accepted =
+        std::count_if(new_job.images.begin(), new_job.images.end(),
+                      [](const JobImageRecord& image) { return image.photo.accepted; });
     const auto rejected = static_cast<std::int64_t>(new_job.images.size()) - accepted;
 
     Transaction transaction(db, Transaction::Mode::kImmediate);
@@ -519,11 +519,15 @@ Result<Job> SqliteJobStore::CreateJob(const NewJob& new_job) {
     for (const JobImageRecord& image : new_job.images) {
       image_insert.Reset();
       image_insert.Bind(1, id).Bind(2, image.index).Bind(3, image.original_name);
-      image_insert.Bind(4, image.stored_name).Bind(5, image.bytes).Bind(6, image.width);
-      image_insert.Bind(7, image.height).Bind(8, image.exif_focal_px);
-      image_insert.BindTextOrNull(9, image.make).BindTextOrNull(10, image.model);
-      image_insert.Bind(11, ImageStatusName(image.status));
-      image_insert.BindTextOrNull(12, image.reject_reason);
+      const PhotoMetadata& photo = image.photo;
+      const bool sized = photo.width > 0 && photo.height > 0;  // NULL size when unknown.
+      image_insert.Bind(4, image.stored_name).Bind(5, photo.bytes);
+      image_insert.Bind(6, sized ? std::optional<int>(photo.width) : std::nullopt);
+      image_insert.Bind(7, sized ? std::optional<int>(photo.height) : std::nullopt);
+      image_insert.Bind(8, photo.exif_focal_px);
+      image_insert.BindTextOrNull(9, photo.make).BindTextOrNull(10, photo.model);
+      image_insert.Bind(11, ImageStatusName(photo.accepted));
+      image_insert.BindTextOrNull(12, photo.reason);
       image_insert.Run();
     }
     std::string message =
@@ -561,14 +565,15 @@ Result<std::vector<JobImageRecord>> SqliteJobStore::ListImages(std::string_view 
       image.index = static_cast<int>(select.Int64(0));
       image.original_name = select.Text(1);
       image.stored_name = select.Text(2);
-      image.bytes = select.Int64(3);
-      if (!select.IsNull(4)) image.width = static_cast<int>(select.Int64(4));
-      if (!select.IsNull(5)) image.height = static_cast<int>(select.Int64(5));
-      image.exif_focal_px = select.OptionalDouble(6);
-      image.make = select.Text(7);
-      image.model = select.Text(8);
-      image.status = select.Text(9) == "rejected" ? ImageStatus::kRejected : ImageStatus::kAccepted;
-      image.reject_reason = select.Text(10);
+      PhotoMetadata& photo = image.photo;
+      photo.bytes = select.Int64(3);
+      if (!select.IsNull(4)) photo.width = static_cast<int>(select.Int64(4));
+      if (!select.IsNull(5)) photo.height = static_cast<int>(select.Int64(5));
+      photo.exif_focal_px = select.OptionalDouble(6);
+      photo.make = select.Text(7);
+      photo.model = select.Text(8);
+      photo.accepted = select.Text(9) != "rejected";
+      photo.reason = select.Text(10);
       images.push_back(std::move(image));
     }
     return images;

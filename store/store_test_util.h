@@ -68,9 +68,9 @@ inline NewJob MakeNewJob(int accepted = 2, int max_attempts = 3) {
     char stored[16];
     std::snprintf(stored, sizeof(stored), "%04d.jpg", i);
     image.stored_name = stored;
-    image.bytes = 1000 + i;
-    image.width = 640;
-    image.height = 480;
+    image.photo.bytes = 1000 + i;
+    image.photo.width = 640;
+    image.photo.height = 480;
     job.images.push_back(image);
   }
   return job;

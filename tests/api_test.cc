@@ -209,10 +209,10 @@ TEST_F(ApiTest, UploadsATempleSetAndServesStatusEventsListOptionsAndMetrics) {
     const JobImageRecord& row = (*rows)[i];
     EXPECT_EQ(row.index, i);
     EXPECT_EQ(row.stored_name, "000" + std::to_string(i + 1) + ".png");
-    EXPECT_EQ(row.status, ImageStatus::kAccepted);
-    EXPECT_EQ(row.width, 640);
-    EXPECT_EQ(row.height, 480);
-    EXPECT_EQ(row.bytes, static_cast<std::int64_t>(fs::file_size(images / names[i])));
+    EXPECT_TRUE(row.photo.accepted);
+    EXPECT_EQ(row.photo.width, 640);
+    EXPECT_EQ(row.photo.height, 480);
+    EXPECT_EQ(row.photo.bytes, static_cast<std::int64_t>(fs::file_size(images / names[i])));
     EXPECT_EQ(ReadFileBytes(data() / "jobs" / id / "input" / row.stored_name),
               ReadFileBytes(images / names[i]));
   }

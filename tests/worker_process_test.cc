@@ -163,7 +163,8 @@ class WorkerProcessTest : public ::testing::Test {
       image.index = i;
       image.original_name = "room_" + std::to_string(i) + ".jpg";
       image.stored_name = stored;
-      image.bytes = static_cast<std::int64_t>(fs::file_size(layout_.InputDir(job.id) / stored));
+      image.photo.bytes =
+          static_cast<std::int64_t>(fs::file_size(layout_.InputDir(job.id) / stored));
       job.images.push_back(std::move(image));
     }
     Result<Job> created = store_->CreateJob(job);

@@ -232,7 +232,7 @@ Result<std::vector<InputImage>> PhotosFromRecords(const std::vector<JobImageReco
                                                   const fs::path& input_dir) {
   std::vector<const JobImageRecord*> accepted;
   for (const JobImageRecord& record : records) {
-    if (record.status == ImageStatus::kAccepted) accepted.push_back(&record);
+    if (record.photo.accepted) accepted.push_back(&record);
   }
   std::stable_sort(
       accepted.begin(), accepted.end(),

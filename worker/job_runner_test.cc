@@ -69,7 +69,8 @@ class JobRunnerTest : public ::testing::Test {
       image.index = i;
       image.original_name = "IMG_000" + std::to_string(i + 1) + ".JPG";
       image.stored_name = stored;
-      image.bytes = static_cast<std::int64_t>(fs::file_size(layout_.InputDir(job.id) / stored));
+      image.photo.bytes =
+          static_cast<std::int64_t>(fs::file_size(layout_.InputDir(job.id) / stored));
       job.images.push_back(image);
     }
     // A rejected photo must not reach the pipeline.
@@ -77,8 +78,8 @@ class JobRunnerTest : public ::testing::Test {
     rejected.index = kPhotos;
     rejected.original_name = "broken.jpg";
     rejected.stored_name = "9999.jpg";
-    rejected.status = ImageStatus::kRejected;
-    rejected.reject_reason = "truncated JPEG";
+    rejected.photo.accepted = false;
+    rejected.photo.reason = "truncated JPEG";
     job.images.push_back(rejected);
     Result<Job> created = store_->CreateJob(job);
     THROW_CHECK(created.ok()) << created.status();
@@ -424,7 +425,7 @@ TEST(PhotosFromRecords, AcceptedPhotosWithSafeUniqueNames) {
   records[1] = {.index = 0, .original_name = "a.jpg", .stored_name = "0001.jpg"};
   records[2] = {.index = 1, .original_name = "", .stored_name = "0002.jpg"};
   records[3] = {.index = 3, .original_name = "b.jpg", .stored_name = "0004.jpg"};
-  records[3].status = ImageStatus::kRejected;
+  records[3].photo.accepted = false;
   const Result<std::vector<InputImage>> photos = PhotosFromRecords(records, "/in");
   ASSERT_TRUE(photos.ok()) << photos.status();
   ASSERT_EQ(photos->size(), 3u);
@@ -436,7 +437,7 @@ TEST(PhotosFromRecords, AcceptedPhotosWithSafeUniqueNames) {
   records[1].stored_name = "../0001.jpg";
   EXPECT_FALSE(PhotosFromRecords(records, "/in").ok());
   records[1].stored_name = "0001.jpg";
-  for (JobImageRecord& record : records) record.status = ImageStatus::kRejected;
+  for (JobImageRecord& record : records) record.photo.accepted = false;
   EXPECT_FALSE(PhotosFromRecords(records, "/in").ok());
 }
 

@@ -117,6 +117,26 @@ std::string ImageRecord::ReasonWithoutName() const {
   return reason.empty() ? "rejected" : reason;
 }
 
+PhotoMetadata ImageRecord::Metadata() const {
+  PhotoMetadata photo;
+  photo.bytes = info.file_bytes;
+  if (info.width > 0 && info.height > 0) {
+    photo.width = info.width;
+    photo.height = info.height;
+  }
+  if (info.focal) {
+    photo.exif_focal_px = info.focal->focal_px;
+    photo.focal_source = std::string(FocalSourceName(info.focal->source));
+  }
+  if (info.exif) {
+    photo.make = info.exif->camera_make;
+    photo.model = info.exif->camera_model;
+  }
+  photo.accepted = accepted();
+  photo.reason = ReasonWithoutName();
+  return photo;
+}
+
 ImageRecord InspectImageHeader(const std::filesystem::path& path,
                                const ImageReaderOptions& options,
                                std::vector<std::uint8_t>* bytes_out) {

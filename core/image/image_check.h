@@ -23,6 +23,7 @@
 
 #include "core/image/exif.h"
 #include "core/image/image_format.h"
+#include "core/image/photo_metadata.h"
 #include "core/util/status.h"
 
 #include <cstdint>
@@ -86,6 +87,10 @@ struct ImageRecord {
   // The refusal reason without the leading "<name>: " (empty when accepted), for callers that
   // show it next to a name of their own.
   std::string ReasonWithoutName() const;
+  // The photo facts later readers keep (photo_metadata.h): bytes, displayed size (0 x 0 unless
+  // both sides are known), EXIF focal prior and its source, make, model, and acceptance with
+  // ReasonWithoutName. The one conversion used by ingest and the upload check.
+  PhotoMetadata Metadata() const;
 };
 
 // Validates and describes one file from its bytes, without decoding pixels (see the file

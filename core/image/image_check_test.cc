@@ -88,6 +88,18 @@ TEST_F(ImageCheckTest, DescribesAPhotoFromItsHeaderAndExif) {
   EXPECT_DOUBLE_EQ(record.info.focal->focal_px, 24.0 / 36.0 * 320.0);
   EXPECT_EQ(record.ReasonWithoutName(), "");
 
+  // The facts later readers keep.
+  const PhotoMetadata photo = record.Metadata();
+  EXPECT_EQ(photo.bytes, record.info.file_bytes);
+  EXPECT_EQ(photo.width, 240);
+  EXPECT_EQ(photo.height, 320);
+  EXPECT_EQ(photo.exif_focal_px, record.info.focal->focal_px);
+  EXPECT_EQ(photo.focal_source, FocalSourceName(record.info.focal->source));
+  EXPECT_EQ(photo.make, "Reconduit");
+  EXPECT_EQ(photo.model, "Test 1");
+  EXPECT_TRUE(photo.accepted);
+  EXPECT_EQ(photo.reason, "");
+
   // The full inspection, which decodes, agrees on everything.
   const ImageRecord decoded = InspectImage(dir_ / "rotated.jpg", options_);
   ASSERT_TRUE(decoded.accepted()) << decoded.status;
@@ -109,6 +121,11 @@ TEST_F(ImageCheckTest, RefusesTruncatedFiles) {
             "half.jpg: truncated: the JPEG data ends before its end-of-image marker");
   EXPECT_EQ(record.ReasonWithoutName(),
             "truncated: the JPEG data ends before its end-of-image marker");
+  const PhotoMetadata photo = record.Metadata();
+  EXPECT_FALSE(photo.accepted);
+  EXPECT_EQ(photo.reason, "truncated: the JPEG data ends before its end-of-image marker");
+  EXPECT_GT(photo.bytes, 0);
+  EXPECT_FALSE(photo.exif_focal_px.has_value());
   // The bytes are handed over only for accepted photos.
   EXPECT_EQ(bytes, (std::vector<std::uint8_t>{1, 2, 3}));
 }

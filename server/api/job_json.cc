@@ -108,18 +108,21 @@ nlohmann::json ImagesToJson(const std::vector<JobImageRecord>& images) {
   int rejected = 0;
   nlohmann::json items = nlohmann::json::array();
   for (const JobImageRecord& image : images) {
+    const PhotoMetadata& photo = image.photo;
     nlohmann::json item = {{"index", image.index},
                            {"name", image.original_name},
                            {"stored_name", image.stored_name},
-                           {"status", std::string(ImageStatusName(image.status))},
-                           {"bytes", image.bytes}};
-    if (image.width) item["width"] = *image.width;
-    if (image.height) item["height"] = *image.height;
-    if (image.exif_focal_px) item["exif_focal_px"] = *image.exif_focal_px;
-    if (!image.make.empty()) item["make"] = image.make;
-    if (!image.model.empty()) item["model"] = image.model;
-    if (image.status == ImageStatus::kRejected) {
-      item["reason"] = image.reject_reason;
+                           {"status", std::string(ImageStatusName(photo.accepted))},
+                           {"bytes", photo.bytes}};
+    if (photo.width > 0 && photo.height > 0) {
+      item["width"] = photo.width;
+      item["height"] = photo.height;
+    }
+    if (photo.exif_focal_px) item["exif_focal_px"] = *photo.exif_focal_px;
+    if (!photo.make.empty()) item["make"] = photo.make;
+    if (!photo.model.empty()) item["model"] = photo.model;
+    if (!photo.accepted) {
+      item["reason"] = photo.reason;
       ++rejected;
     } else {
       ++accepted;

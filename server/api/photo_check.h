@@ -1,4 +1,4 @@
-// Checks one stored upload on the HTTP I/O thread and fills the metadata of its images row.
+// Checks one stored upload on the HTTP I/O thread and returns the metadata of its images row.
 //
 // Header checks only (core/image/image_check.h): format by content, size limits from the
 // header, truncation (a missing end-of-image marker or a short chunk), EXIF make, model and
@@ -11,7 +11,8 @@
 #ifndef RECONDUIT_SERVER_API_PHOTO_CHECK_H_
 #define RECONDUIT_SERVER_API_PHOTO_CHECK_H_
 
-#include "store/job_store.h"
+#include "core/image/photo_metadata.h"
+
 #include <cstdint>
 #include <filesystem>
 
@@ -26,13 +27,11 @@ struct PhotoCheckOptions {
   std::int64_t max_file_bytes = std::int64_t{256} << 20;
 };
 
-// Inspects the photo at `path` (header checks only, see above) and sets the metadata fields
-// of *record: bytes, width and height as displayed (when the header could be read), EXIF
-// focal prior, make and model, status and the refusal reason (without the file name). The
-// names and index are left as they are. Never throws for a bad file. Thread-safe.
-void CheckPhoto(const std::filesystem::path& path,
-                const PhotoCheckOptions& options,
-                JobImageRecord* record);
+// Inspects the photo at `path` (header checks only, see above) and returns its metadata for
+// the images row: bytes, width and height as displayed (0 when the header could not be read),
+// EXIF focal prior, make and model, acceptance and the refusal reason (without the file name).
+// Never throws for a bad file. Thread-safe.
+PhotoMetadata CheckPhoto(const std::filesystem::path& path, const PhotoCheckOptions& options);
 
 }  // namespace reconduit::server
 

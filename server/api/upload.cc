@@ -220,11 +220,11 @@ class UploadSession {
       fs::rename(input_dir_ / photo.part_name, input_dir_ / record.stored_name, ec);
       if (ec) return StorageFailure(*services_, "rename " + photo.part_name, ec.value());
 
-      CheckPhoto(input_dir_ / record.stored_name, check_options, &record);
+      record.photo = CheckPhoto(input_dir_ / record.stored_name, check_options);
       // Equal to the file's size; counted here too for the few refusals that cannot open it.
-      record.bytes = photo.bytes;
-      if (record.status == ImageStatus::kRejected) {
-        reasons.push_back(photo.display_name + ": " + record.reject_reason);
+      record.photo.bytes = photo.bytes;
+      if (!record.photo.accepted) {
+        reasons.push_back(photo.display_name + ": " + record.photo.reason);
       }
       total_bytes += photo.bytes;
       job.images.push_back(std::move(record));

@@ -26,7 +26,8 @@ Result<std::vector<std::string>> ExportSparse(const Workspace& workspace, const 
   if (!images.ok()) return images.status();
   std::vector<std::string> unregistered;
   for (const IngestedImage& image : *images) {
-    if (image.accepted && !best->images.count(image.index)) unregistered.push_back(image.name);
+    if (image.photo.accepted && !best->images.count(image.index))
+      unregistered.push_back(image.name);
   }
   std::error_code ec;
   fs::create_directories(out / "sparse", ec);

@@ -85,10 +85,10 @@ class ExportStageTest : public ::testing::Test {
       image.index = i;
       image.name = workspace_.images[i].name;
       image.path = workspace_.images[i].path;
-      image.accepted = i < 4;
-      if (!image.accepted) image.reason = "not a photo";
-      image.width = i == 3 ? 480 : 640;
-      image.height = i == 3 ? 640 : 480;
+      image.photo.accepted = i < 4;
+      if (!image.photo.accepted) image.photo.reason = "not a photo";
+      image.photo.width = i == 3 ? 480 : 640;
+      image.photo.height = i == 3 ? 640 : 480;
       images.push_back(image.ToJson());
     }
     ASSERT_TRUE(WriteFileAtomically(workspace_.StageDir("ingest") / "images.json",

@@ -29,7 +29,7 @@ StageResult FeaturesStage::Run(StageContext& context) const {
   if (!images.ok()) return StageResult::Failed(images.status().message());
   std::vector<const IngestedImage*> accepted;
   for (const IngestedImage& image : *images) {
-    if (image.accepted) accepted.push_back(&image);
+    if (image.photo.accepted) accepted.push_back(&image);
   }
 
   SiftOptions sift;

@@ -7,16 +7,17 @@
 namespace reconduit {
 
 nlohmann::json IngestedImage::ToJson() const {
-  nlohmann::json json = {{"index", index},          {"name", name},   {"path", path.string()},
-                         {"accepted", accepted},    {"width", width}, {"height", height},
+  nlohmann::json json = {{"index", index},          {"name", name},
+                         {"path", path.string()},   {"accepted", photo.accepted},
+                         {"width", photo.width},    {"height", photo.height},
                          {"camera_key", camera_key}};
-  if (!reason.empty()) json["reason"] = reason;
-  if (exif_focal_px) {
-    json["exif_focal_px"] = *exif_focal_px;
-    json["focal_source"] = focal_source;
+  if (!photo.reason.empty()) json["reason"] = photo.reason;
+  if (photo.exif_focal_px) {
+    json["exif_focal_px"] = *photo.exif_focal_px;
+    json["focal_source"] = photo.focal_source;
   }
-  if (!camera_make.empty()) json["camera_make"] = camera_make;
-  if (!camera_model.empty()) json["camera_model"] = camera_model;
+  if (!photo.make.empty()) json["camera_make"] = photo.make;
+  if (!photo.model.empty()) json["camera_model"] = photo.model;
   return json;
 }
 
@@ -25,14 +26,16 @@ IngestedImage IngestedImage::FromJson(const nlohmann::json& json) {
   image.index = json.at("index").get<int>();
   image.name = json.at("name").get<std::string>();
   image.path = json.at("path").get<std::string>();
-  image.accepted = json.at("accepted").get<bool>();
-  image.reason = json.value("reason", "");
-  image.width = json.value("width", 0);
-  image.height = json.value("height", 0);
-  if (json.contains("exif_focal_px")) image.exif_focal_px = json["exif_focal_px"].get<double>();
-  image.focal_source = json.value("focal_source", "");
-  image.camera_make = json.value("camera_make", "");
-  image.camera_model = json.value("camera_model", "");
+  image.photo.accepted = json.at("accepted").get<bool>();
+  image.photo.reason = json.value("reason", "");
+  image.photo.width = json.value("width", 0);
+  image.photo.height = json.value("height", 0);
+  if (json.contains("exif_focal_px")) {
+    image.photo.exif_focal_px = json["exif_focal_px"].get<double>();
+  }
+  image.photo.focal_source = json.value("focal_source", "");
+  image.photo.make = json.value("camera_make", "");
+  image.photo.model = json.value("camera_model", "");
   image.camera_key = json.value("camera_key", "");
   return image;
 }
@@ -58,26 +61,15 @@ StageResult IngestStage::Run(StageContext& context) const {
     image.index = static_cast<int>(i);
     image.name = workspace.images[i].name;
     image.path = workspace.images[i].path;
-    image.accepted = record.accepted();
-    image.width = record.info.width;
-    image.height = record.info.height;
-    if (!image.accepted) {
-      image.reason = record.status.message();
-      refusals += "\n  " + image.name + ": " + image.reason;
-    } else {
+    image.photo = record.Metadata();
+    if (image.photo.accepted) {
       ++accepted;
+      if (image.photo.exif_focal_px) ++with_exif_focal;
+    } else {
+      refusals += "\n  " + image.name + ": " + image.photo.reason;
     }
-    if (record.info.exif) {
-      image.camera_make = record.info.exif->camera_make;
-      image.camera_model = record.info.exif->camera_model;
-    }
-    if (record.info.focal) {
-      image.exif_focal_px = record.info.focal->focal_px;
-      image.focal_source = std::string(FocalSourceName(record.info.focal->source));
-      if (image.accepted) ++with_exif_focal;
-    }
-    image.camera_key = image.camera_make + "|" + image.camera_model + "|" +
-                       std::to_string(image.width) + "x" + std::to_string(image.height);
+    image.camera_key = image.photo.make + "|" + image.photo.model + "|" +
+                       std::to_string(image.photo.width) + "x" + std::to_string(image.photo.height);
     list.push_back(image.ToJson());
   }
   if (Status s = WriteFileAtomically(context.stage_dir / "images.json",

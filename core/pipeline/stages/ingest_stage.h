@@ -6,6 +6,7 @@
 #ifndef RECONDUIT_CORE_PIPELINE_STAGES_INGEST_STAGE_H_
 #define RECONDUIT_CORE_PIPELINE_STAGES_INGEST_STAGE_H_
 
+#include "core/image/photo_metadata.h"
 #include "core/pipeline/stage.h"
 
 #include <optional>
@@ -14,18 +15,14 @@
 
 namespace reconduit {
 
+// One photo as ingest saw it: its place in the workspace and its facts (photo_metadata.h).
 struct IngestedImage {
   int index = -1;              // Position in the workspace's image list.
   std::string name;            // Display name.
   std::filesystem::path path;  // Where the bytes are.
-  bool accepted = false;
-  std::string reason;  // Why it was refused (empty when accepted).
-  int width = 0;       // Oriented size in pixels.
-  int height = 0;
-  std::optional<double> exif_focal_px;  // EXIF focal prior in pixels of width x height.
-  std::string focal_source;             // How exif_focal_px was derived, or "".
-  std::string camera_make;
-  std::string camera_model;
+  // Size, EXIF and acceptance; photo.reason does not repeat the name. photo.bytes is not
+  // written to images.json (0 when read back).
+  PhotoMetadata photo;
   // Photos with equal keys share intrinsics: EXIF make, model and size, or the size alone
   // for photos without EXIF.
   std::string camera_key;

@@ -14,7 +14,7 @@ StageResult PairsStage::Run(StageContext& context) const {
   std::vector<int> indices;
   std::vector<FeatureSet> features;
   for (const IngestedImage& image : *images) {
-    if (!image.accepted) continue;
+    if (!image.photo.accepted) continue;
     auto f = ReadImageFeatures(context.workspace, image.index);
     if (!f.ok()) return StageResult::Failed(f.status().message());
     indices.push_back(image.index);

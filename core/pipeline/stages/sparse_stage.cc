@@ -116,7 +116,7 @@ Status AddImagesByCamera(const Workspace& workspace,
                          std::map<int, std::vector<const IngestedImage*>>* members) {
   std::map<std::string, int> camera_of_key;
   for (const IngestedImage& image : images) {
-    if (!image.accepted) continue;
+    if (!image.photo.accepted) continue;
     auto [it, inserted] =
         camera_of_key.try_emplace(image.camera_key, static_cast<int>(camera_of_key.size()));
     (*members)[it->second].push_back(&image);
@@ -141,10 +141,10 @@ InitialCalibrationInput CalibrationInputOf(int camera_id,
                                            const std::vector<VerifiedPair>& pairs,
                                            const MapperInput& input) {
   InitialCalibrationInput calibration;
-  calibration.width = photos.front()->width;
-  calibration.height = photos.front()->height;
+  calibration.width = photos.front()->photo.width;
+  calibration.height = photos.front()->photo.height;
   for (const IngestedImage* p : photos) {
-    if (p->exif_focal_px) calibration.exif_focals.push_back(*p->exif_focal_px);
+    if (p->photo.exif_focal_px) calibration.exif_focals.push_back(*p->photo.exif_focal_px);
   }
   auto of_camera = [&](int image_id) {
     auto it = input.images.find(image_id);
