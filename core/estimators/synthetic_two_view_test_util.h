@@ -14,7 +14,7 @@
 #include <vector>
 
 namespace reconduit {
-namespace testing {
+namespace testing_util {
 
 enum class SceneKind {
   kGeneral,   // Points in a box 4-8 units deep, camera 2 translated 1 unit sideways.
@@ -120,7 +120,7 @@ inline double DistanceUpToScale(const Eigen::Matrix3d& a, const Eigen::Matrix3d&
   return std::min((an - bn).norm(), (an + bn).norm());
 }
 
-}  // namespace testing
+}  // namespace testing_util
 }  // namespace reconduit
 
 #endif  // RECONDUIT_CORE_ESTIMATORS_SYNTHETIC_TWO_VIEW_TEST_UTIL_H_

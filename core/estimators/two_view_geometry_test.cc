@@ -12,9 +12,9 @@
 namespace reconduit {
 namespace {
 
-using testing::DistanceUpToScale;
-using testing::MakeTwoViewScene;
-using testing::SceneKind;
+using testing_util::DistanceUpToScale;
+using testing_util::MakeTwoViewScene;
+using testing_util::SceneKind;
 
 struct PrecisionRecall {
   double precision = 0.0;

@@ -91,7 +91,8 @@ TEST(ReadExif, GarbageAndImagesWithoutExifGiveNothing) {
   EXPECT_FALSE(ReadExif({}).has_value());
   const std::vector<std::uint8_t> text = {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm', 'g'};
   EXPECT_FALSE(ReadExif(text).has_value());
-  const std::vector<std::uint8_t> jpeg = testing::Encode(testing::TestPattern(32, 32), ".jpg");
+  const std::vector<std::uint8_t> jpeg =
+      testing_util::Encode(testing_util::TestPattern(32, 32), ".jpg");
   EXPECT_FALSE(ReadExif(jpeg).has_value());
   // A JPEG whose APP1 "Exif" segment holds garbage.
   std::vector<std::uint8_t> bad = {0xFF, 0xD8, 0xFF, 0xE1, 0x00, 0x10, 'E',  'x',  'i',  'f', 0,

@@ -1,5 +1,6 @@
 #include "core/image/image_check.h"
 
+#include "core/image/exif_test_util.h"
 #include "core/image/image_reader.h"
 #include "core/image/test_util.h"
 
@@ -11,39 +12,17 @@
 #include <string>
 #include <vector>
 
-// exiv2 0.27's public API is built on std::auto_ptr, deprecated since C++11.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
-#include <exiv2/exiv2.hpp>
-
 namespace reconduit {
 namespace {
 
 using ::testing::HasSubstr;
 
-// Writes JPEG bytes at `path` with Exif.Image.Orientation, Make, Model and a 35 mm focal.
-void WriteJpegWithExif(const std::filesystem::path& path,
-                       const std::vector<std::uint8_t>& jpeg,
-                       int orientation) {
-  testing::WriteBytes(path, jpeg);
-  Exiv2::Image::AutoPtr image = Exiv2::ImageFactory::open(path.string());
-  ASSERT_NE(image.get(), nullptr);
-  image->readMetadata();
-  Exiv2::ExifData exif;
-  exif["Exif.Image.Orientation"] = static_cast<std::uint16_t>(orientation);
-  exif["Exif.Image.Make"] = "Reconduit";
-  exif["Exif.Image.Model"] = "Test 1";
-  exif["Exif.Photo.FocalLengthIn35mmFilm"] = static_cast<std::uint16_t>(24);
-  image->setExifData(exif);
-  image->writeMetadata();
-}
-
-#pragma GCC diagnostic pop
+using testing_util::WriteJpegWithExif;
 
 // PNG bytes whose first IDAT chunk's compressed data is scrambled, chunk structure kept: the
 // header and the IEND marker are intact but the pixels do not decode.
 std::vector<std::uint8_t> PngCorruptInTheMiddle(const cv::Mat& image) {
-  std::vector<std::uint8_t> png = testing::Encode(image, ".png");
+  std::vector<std::uint8_t> png = testing_util::Encode(image, ".png");
   const std::string idat = "IDAT";
   const auto it = std::search(png.begin(), png.end(), idat.begin(), idat.end());
   const auto data_start = static_cast<std::size_t>(it - png.begin()) + 4;
@@ -61,13 +40,13 @@ class ImageCheckTest : public ::testing::Test {
     return InspectImageHeader(dir_ / name, options_);
   }
 
-  testing::ScopedTempDir dir_;
+  testing_util::ScopedTempDir dir_;
   ImageReaderOptions options_;
-  const cv::Mat pattern_ = testing::TestPattern(320, 240);
+  const cv::Mat pattern_ = testing_util::TestPattern(320, 240);
 };
 
 TEST_F(ImageCheckTest, DescribesAPhotoFromItsHeaderAndExif) {
-  WriteJpegWithExif(dir_ / "rotated.jpg", testing::Encode(pattern_, ".jpg"), 6);
+  WriteJpegWithExif(dir_ / "rotated.jpg", testing_util::Encode(pattern_, ".jpg"), 6);
   options_.max_side = 160;
   std::vector<std::uint8_t> bytes;
   const ImageRecord record = InspectImageHeader(dir_ / "rotated.jpg", options_, &bytes);
@@ -111,9 +90,9 @@ TEST_F(ImageCheckTest, DescribesAPhotoFromItsHeaderAndExif) {
 }
 
 TEST_F(ImageCheckTest, RefusesTruncatedFiles) {
-  const std::vector<std::uint8_t> jpeg = testing::Encode(pattern_, ".jpg");
-  testing::WriteBytes(dir_ / "half.jpg",
-                      std::vector<std::uint8_t>(jpeg.begin(), jpeg.begin() + jpeg.size() / 2));
+  const std::vector<std::uint8_t> jpeg = testing_util::Encode(pattern_, ".jpg");
+  testing_util::WriteBytes(dir_ / "half.jpg",
+                           std::vector<std::uint8_t>(jpeg.begin(), jpeg.begin() + jpeg.size() / 2));
   std::vector<std::uint8_t> bytes = {1, 2, 3};
   const ImageRecord record = InspectImageHeader(dir_ / "half.jpg", options_, &bytes);
   EXPECT_EQ(record.status.code(), StatusCode::kInvalidArgument);
@@ -131,17 +110,18 @@ TEST_F(ImageCheckTest, RefusesTruncatedFiles) {
 }
 
 TEST_F(ImageCheckTest, RefusesNonImagesBombsAndTinyImages) {
-  testing::WriteText(dir_ / "notes.jpg", "not a photo at all");
+  testing_util::WriteText(dir_ / "notes.jpg", "not a photo at all");
   EXPECT_EQ(Check("notes.jpg").ReasonWithoutName(), "not a JPEG, PNG or TIFF image");
-  testing::WriteBytes(dir_ / "bomb.png", testing::PngHeaderOnly(100000, 100000));
+  testing_util::WriteBytes(dir_ / "bomb.png", testing_util::PngHeaderOnly(100000, 100000));
   EXPECT_EQ(Check("bomb.png").status.code(), StatusCode::kResourceExhausted);
-  testing::WriteBytes(dir_ / "dot.png", testing::Encode(testing::TestPattern(1, 1), ".png"));
+  testing_util::WriteBytes(dir_ / "dot.png",
+                           testing_util::Encode(testing_util::TestPattern(1, 1), ".png"));
   EXPECT_EQ(Check("dot.png").ReasonWithoutName(),
             "image is 1x1 pixels; the minimum is 100 pixels per side");
 }
 
 TEST_F(ImageCheckTest, CorruptionInsideCompressedDataIsLeftToTheDecoder) {
-  testing::WriteBytes(dir_ / "corrupt.png", PngCorruptInTheMiddle(pattern_));
+  testing_util::WriteBytes(dir_ / "corrupt.png", PngCorruptInTheMiddle(pattern_));
   // Header and end marker are intact: the header check, which never decodes, accepts it...
   const ImageRecord header = Check("corrupt.png");
   ASSERT_TRUE(header.accepted()) << header.status;

@@ -41,17 +41,18 @@ TEST(DetectImageFormat, RejectsNonImagesAndShortInput) {
 }
 
 TEST(DetectImageFormat, EncodedImagesAreRecognised) {
-  const cv::Mat image = testing::TestPattern(16, 8);
-  EXPECT_EQ(DetectImageFormat(testing::Encode(image, ".jpg")), ImageFormat::kJpeg);
-  EXPECT_EQ(DetectImageFormat(testing::Encode(image, ".png")), ImageFormat::kPng);
-  EXPECT_EQ(DetectImageFormat(testing::Encode(image, ".tif")), ImageFormat::kTiff);
+  const cv::Mat image = testing_util::TestPattern(16, 8);
+  EXPECT_EQ(DetectImageFormat(testing_util::Encode(image, ".jpg")), ImageFormat::kJpeg);
+  EXPECT_EQ(DetectImageFormat(testing_util::Encode(image, ".png")), ImageFormat::kPng);
+  EXPECT_EQ(DetectImageFormat(testing_util::Encode(image, ".tif")), ImageFormat::kTiff);
 }
 
 TEST(DetectImageFormatOfFile, UsesContentNotName) {
-  const testing::ScopedTempDir dir;
-  testing::WriteBytes(dir / "photo.jpg", testing::Encode(testing::TestPattern(16, 8), ".png"));
-  testing::WriteText(dir / "notes.png", "not an image\n");
-  testing::WriteText(dir / "empty.jpg", "");
+  const testing_util::ScopedTempDir dir;
+  testing_util::WriteBytes(dir / "photo.jpg",
+                           testing_util::Encode(testing_util::TestPattern(16, 8), ".png"));
+  testing_util::WriteText(dir / "notes.png", "not an image\n");
+  testing_util::WriteText(dir / "empty.jpg", "");
 
   const Result<ImageFormat> png = DetectImageFormatOfFile(dir / "photo.jpg");
   ASSERT_TRUE(png.ok()) << png.status();

@@ -18,10 +18,10 @@ std::vector<std::uint8_t> Prefix(const std::vector<std::uint8_t>& bytes, std::si
 }
 
 TEST(ReadImageHeader, SizeOfEncodedImages) {
-  const cv::Mat image = testing::TestPattern(123, 45);
+  const cv::Mat image = testing_util::TestPattern(123, 45);
   for (const char* extension : {".jpg", ".png", ".tif"}) {
     SCOPED_TRACE(extension);
-    const std::vector<std::uint8_t> bytes = testing::Encode(image, extension);
+    const std::vector<std::uint8_t> bytes = testing_util::Encode(image, extension);
     ASSERT_FALSE(bytes.empty());
     const Result<ImageHeader> header = ReadImageHeader(bytes);
     ASSERT_TRUE(header.ok()) << header.status();
@@ -49,7 +49,8 @@ TEST(ReadImageHeader, BigEndianTiff) {
 }
 
 TEST(ReadImageHeader, JpegPrefixUpToFrameHeaderSuffices) {
-  const std::vector<std::uint8_t> bytes = testing::Encode(testing::TestPattern(64, 32), ".jpg");
+  const std::vector<std::uint8_t> bytes =
+      testing_util::Encode(testing_util::TestPattern(64, 32), ".jpg");
   // OpenCV writes SOI, APP0 (JFIF), DQT, SOF0 near the start: 1 KiB is plenty.
   const Result<ImageHeader> header = ReadImageHeader(Prefix(bytes, 1024));
   ASSERT_TRUE(header.ok()) << header.status();
@@ -59,7 +60,7 @@ TEST(ReadImageHeader, JpegPrefixUpToFrameHeaderSuffices) {
 }
 
 TEST(ReadImageHeader, DecompressionBombHeaderIsParsed) {
-  const Result<ImageHeader> header = ReadImageHeader(testing::PngHeaderOnly(100000, 100000));
+  const Result<ImageHeader> header = ReadImageHeader(testing_util::PngHeaderOnly(100000, 100000));
   ASSERT_TRUE(header.ok()) << header.status();
   EXPECT_EQ(header->width, 100000);
   EXPECT_EQ(header->height, 100000);
@@ -68,23 +69,23 @@ TEST(ReadImageHeader, DecompressionBombHeaderIsParsed) {
 TEST(ReadImageHeader, RejectsUnknownAndZeroSize) {
   const std::vector<std::uint8_t> text = {'h', 'e', 'l', 'l', 'o', '!', '!', '!'};
   EXPECT_THAT(ReadImageHeader(text).status().message(), HasSubstr("not a JPEG, PNG or TIFF"));
-  EXPECT_THAT(ReadImageHeader(testing::PngHeaderOnly(0, 10)).status().message(),
+  EXPECT_THAT(ReadImageHeader(testing_util::PngHeaderOnly(0, 10)).status().message(),
               HasSubstr("invalid size of 0x10"));
 }
 
 TEST(CheckImageComplete, AcceptsCompleteFiles) {
-  const cv::Mat image = testing::TestPattern(200, 150);
+  const cv::Mat image = testing_util::TestPattern(200, 150);
   for (const char* extension : {".jpg", ".png", ".tif"}) {
     SCOPED_TRACE(extension);
-    EXPECT_TRUE(CheckImageComplete(testing::Encode(image, extension)).ok());
+    EXPECT_TRUE(CheckImageComplete(testing_util::Encode(image, extension)).ok());
   }
 }
 
 TEST(CheckImageComplete, DetectsTruncation) {
-  const cv::Mat image = testing::TestPattern(200, 150);
-  const std::vector<std::uint8_t> jpeg = testing::Encode(image, ".jpg");
-  const std::vector<std::uint8_t> png = testing::Encode(image, ".png");
-  const std::vector<std::uint8_t> tiff = testing::Encode(image, ".tif");
+  const cv::Mat image = testing_util::TestPattern(200, 150);
+  const std::vector<std::uint8_t> jpeg = testing_util::Encode(image, ".jpg");
+  const std::vector<std::uint8_t> png = testing_util::Encode(image, ".png");
+  const std::vector<std::uint8_t> tiff = testing_util::Encode(image, ".tif");
   EXPECT_THAT(CheckImageComplete(Prefix(jpeg, jpeg.size() / 2)).message(),
               HasSubstr("truncated: the JPEG data ends before its end-of-image marker"));
   // Only the final EOI missing.
@@ -130,10 +131,10 @@ TEST(CheckImageComplete, TiffStripsMustLieInsideTheFile) {
 }
 
 TEST(CheckImageComplete, IgnoresDataAfterTheEnd) {
-  const cv::Mat image = testing::TestPattern(200, 150);
+  const cv::Mat image = testing_util::TestPattern(200, 150);
   for (const char* extension : {".jpg", ".png"}) {
     SCOPED_TRACE(extension);
-    std::vector<std::uint8_t> bytes = testing::Encode(image, extension);
+    std::vector<std::uint8_t> bytes = testing_util::Encode(image, extension);
     for (int i = 0; i < 1000; ++i) bytes.push_back(static_cast<std::uint8_t>(i * 37));
     EXPECT_TRUE(CheckImageComplete(bytes).ok()) << CheckImageComplete(bytes);
   }
@@ -141,8 +142,10 @@ TEST(CheckImageComplete, IgnoresDataAfterTheEnd) {
 
 TEST(CheckImageComplete, JpegEmbeddedThumbnailDoesNotEndTheImage) {
   // A JPEG thumbnail inside an APP1 segment contains its own EOI; the walk must skip it.
-  const std::vector<std::uint8_t> full = testing::Encode(testing::TestPattern(200, 150), ".jpg");
-  const std::vector<std::uint8_t> thumbnail = testing::Encode(testing::TestPattern(20, 15), ".jpg");
+  const std::vector<std::uint8_t> full =
+      testing_util::Encode(testing_util::TestPattern(200, 150), ".jpg");
+  const std::vector<std::uint8_t> thumbnail =
+      testing_util::Encode(testing_util::TestPattern(20, 15), ".jpg");
   std::vector<std::uint8_t> bytes = {0xFF, 0xD8, 0xFF, 0xE1};
   const std::size_t length = thumbnail.size() + 2;
   bytes.push_back(static_cast<std::uint8_t>(length >> 8));

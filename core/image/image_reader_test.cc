@@ -1,5 +1,6 @@
 #include "core/image/image_reader.h"
 
+#include "core/image/exif_test_util.h"
 #include "core/image/test_util.h"
 
 #include <gmock/gmock.h>
@@ -10,42 +11,21 @@
 #include <string>
 #include <vector>
 
-// exiv2 0.27's public API is built on std::auto_ptr, deprecated since C++11.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wdeprecated-declarations"
-#include <exiv2/exiv2.hpp>
-
 namespace reconduit {
 namespace {
 
 using ::testing::HasSubstr;
 
-// Writes an image file at `path` by setting Exif.Image.Orientation with exiv2 on JPEG bytes.
-void WriteJpegWithOrientation(const std::filesystem::path& path,
-                              const std::vector<std::uint8_t>& jpeg,
-                              int orientation) {
-  testing::WriteBytes(path, jpeg);
-  Exiv2::Image::AutoPtr image = Exiv2::ImageFactory::open(path.string());
-  ASSERT_NE(image.get(), nullptr);
-  image->readMetadata();
-  Exiv2::ExifData exif;
-  exif["Exif.Image.Orientation"] = static_cast<std::uint16_t>(orientation);
-  exif["Exif.Image.Make"] = "Reconduit";
-  exif["Exif.Photo.FocalLengthIn35mmFilm"] = static_cast<std::uint16_t>(24);
-  image->setExifData(exif);
-  image->writeMetadata();
-}
-
-#pragma GCC diagnostic pop
+using testing_util::WriteJpegWithExif;
 
 class ImageReaderTest : public ::testing::Test {
  protected:
   // Inspects `name` in the temp directory with default options.
   ImageRecord Inspect(const std::string& name) const { return InspectImage(dir_ / name, options_); }
 
-  testing::ScopedTempDir dir_;
+  testing_util::ScopedTempDir dir_;
   ImageReaderOptions options_;
-  const cv::Mat pattern_ = testing::TestPattern(320, 240);
+  const cv::Mat pattern_ = testing_util::TestPattern(320, 240);
 };
 
 TEST(ImageReaderOptions, DefaultsAreValid) {
@@ -79,8 +59,8 @@ TEST_F(ImageReaderTest, AcceptsJpegPngAndTiff) {
   for (const char* extension : {".jpg", ".png", ".tif"}) {
     SCOPED_TRACE(extension);
     const std::string name = std::string("photo") + extension;
-    const std::vector<std::uint8_t> bytes = testing::Encode(pattern_, extension);
-    testing::WriteBytes(dir_ / name, bytes);
+    const std::vector<std::uint8_t> bytes = testing_util::Encode(pattern_, extension);
+    testing_util::WriteBytes(dir_ / name, bytes);
     const ImageRecord record = Inspect(name);
     ASSERT_TRUE(record.accepted()) << record.status;
     EXPECT_EQ(record.name, name);
@@ -94,7 +74,7 @@ TEST_F(ImageReaderTest, AcceptsJpegPngAndTiff) {
 }
 
 TEST_F(ImageReaderTest, TiffRoundTripKeepsPixels) {
-  testing::WriteBytes(dir_ / "lossless.tif", testing::Encode(pattern_, ".tif"));
+  testing_util::WriteBytes(dir_ / "lossless.tif", testing_util::Encode(pattern_, ".tif"));
   const Result<cv::Mat> image = ReadImage(dir_ / "lossless.tif", options_);
   ASSERT_TRUE(image.ok()) << image.status();
   ASSERT_EQ(image->type(), CV_8UC3);
@@ -102,14 +82,14 @@ TEST_F(ImageReaderTest, TiffRoundTripKeepsPixels) {
 }
 
 TEST_F(ImageReaderTest, DetectsFormatByContentNotName) {
-  testing::WriteBytes(dir_ / "really_a_png.jpg", testing::Encode(pattern_, ".png"));
+  testing_util::WriteBytes(dir_ / "really_a_png.jpg", testing_util::Encode(pattern_, ".png"));
   const ImageRecord record = Inspect("really_a_png.jpg");
   ASSERT_TRUE(record.accepted()) << record.status;
   EXPECT_EQ(record.info.format, ImageFormat::kPng);
 }
 
 TEST_F(ImageReaderTest, RejectsNonImage) {
-  testing::WriteText(dir_ / "notes.jpg", "These are not the pixels you are looking for.\n");
+  testing_util::WriteText(dir_ / "notes.jpg", "These are not the pixels you are looking for.\n");
   const ImageRecord record = Inspect("notes.jpg");
   EXPECT_EQ(record.status.code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(record.status.message(), "notes.jpg: not a JPEG, PNG or TIFF image");
@@ -117,7 +97,7 @@ TEST_F(ImageReaderTest, RejectsNonImage) {
 }
 
 TEST_F(ImageReaderTest, RejectsEmptyAndMissingFiles) {
-  testing::WriteText(dir_ / "empty.jpg", "");
+  testing_util::WriteText(dir_ / "empty.jpg", "");
   EXPECT_EQ(Inspect("empty.jpg").status.message(), "empty.jpg: the file is empty");
   const ImageRecord missing = Inspect("missing.jpg");
   EXPECT_EQ(missing.status.code(), StatusCode::kNotFound);
@@ -125,9 +105,9 @@ TEST_F(ImageReaderTest, RejectsEmptyAndMissingFiles) {
 }
 
 TEST_F(ImageReaderTest, RejectsTruncatedJpeg) {
-  const std::vector<std::uint8_t> jpeg = testing::Encode(pattern_, ".jpg");
-  testing::WriteBytes(dir_ / "half.jpg",
-                      std::vector<std::uint8_t>(jpeg.begin(), jpeg.begin() + jpeg.size() / 2));
+  const std::vector<std::uint8_t> jpeg = testing_util::Encode(pattern_, ".jpg");
+  testing_util::WriteBytes(dir_ / "half.jpg",
+                           std::vector<std::uint8_t>(jpeg.begin(), jpeg.begin() + jpeg.size() / 2));
   const ImageRecord record = Inspect("half.jpg");
   EXPECT_EQ(record.status.code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(record.status.message(),
@@ -136,25 +116,25 @@ TEST_F(ImageReaderTest, RejectsTruncatedJpeg) {
 }
 
 TEST_F(ImageReaderTest, RejectsTruncatedPng) {
-  const std::vector<std::uint8_t> png = testing::Encode(pattern_, ".png");
-  testing::WriteBytes(dir_ / "half.png",
-                      std::vector<std::uint8_t>(png.begin(), png.begin() + png.size() / 2));
+  const std::vector<std::uint8_t> png = testing_util::Encode(pattern_, ".png");
+  testing_util::WriteBytes(dir_ / "half.png",
+                           std::vector<std::uint8_t>(png.begin(), png.begin() + png.size() / 2));
   const ImageRecord record = Inspect("half.png");
   EXPECT_EQ(record.status.code(), StatusCode::kInvalidArgument);
   EXPECT_THAT(record.status.message(), HasSubstr("half.png: truncated"));
 }
 
 TEST_F(ImageReaderTest, AcceptsJpegWithJunkAfterEndMarker) {
-  std::vector<std::uint8_t> jpeg = testing::Encode(pattern_, ".jpg");
+  std::vector<std::uint8_t> jpeg = testing_util::Encode(pattern_, ".jpg");
   for (int i = 0; i < 4096; ++i) jpeg.push_back(static_cast<std::uint8_t>(i * 131 + 7));
-  testing::WriteBytes(dir_ / "junk.jpg", jpeg);
+  testing_util::WriteBytes(dir_ / "junk.jpg", jpeg);
   const ImageRecord record = Inspect("junk.jpg");
   ASSERT_TRUE(record.accepted()) << record.status;
   EXPECT_EQ(record.info.width, 320);
 }
 
 TEST_F(ImageReaderTest, RejectsCorruptData) {
-  std::vector<std::uint8_t> png = testing::Encode(pattern_, ".png");
+  std::vector<std::uint8_t> png = testing_util::Encode(pattern_, ".png");
   // Scramble the compressed data inside the first IDAT chunk, keeping the chunk structure, so
   // the file is complete but its pixels do not decode.
   const std::string idat = "IDAT";
@@ -167,14 +147,15 @@ TEST_F(ImageReaderTest, RejectsCorruptData) {
   for (std::size_t i = 2; i < data_length; ++i) {
     png[data_start + i] = static_cast<std::uint8_t>(i * 13 + 5);
   }
-  testing::WriteBytes(dir_ / "corrupt.png", png);
+  testing_util::WriteBytes(dir_ / "corrupt.png", png);
   const ImageRecord record = Inspect("corrupt.png");
   EXPECT_EQ(record.status.code(), StatusCode::kInvalidArgument);
   EXPECT_THAT(record.status.message(), HasSubstr("corrupt.png: the PNG data could not be decoded"));
 }
 
 TEST_F(ImageReaderTest, RejectsTinyImage) {
-  testing::WriteBytes(dir_ / "dot.png", testing::Encode(testing::TestPattern(1, 1), ".png"));
+  testing_util::WriteBytes(dir_ / "dot.png",
+                           testing_util::Encode(testing_util::TestPattern(1, 1), ".png"));
   const ImageRecord record = Inspect("dot.png");
   EXPECT_EQ(record.status.code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(record.status.message(),
@@ -184,7 +165,7 @@ TEST_F(ImageReaderTest, RejectsTinyImage) {
 }
 
 TEST_F(ImageReaderTest, RefusesDecompressionBombFromHeader) {
-  testing::WriteBytes(dir_ / "bomb.png", testing::PngHeaderOnly(100000, 100000));
+  testing_util::WriteBytes(dir_ / "bomb.png", testing_util::PngHeaderOnly(100000, 100000));
   const ImageRecord record = Inspect("bomb.png");
   // The reason is the size, not the missing pixel data: the limit is checked before anything
   // is decoded.
@@ -196,7 +177,7 @@ TEST_F(ImageReaderTest, RefusesDecompressionBombFromHeader) {
 }
 
 TEST_F(ImageReaderTest, RefusesFilesOverTheByteLimit) {
-  testing::WriteBytes(dir_ / "big.png", testing::Encode(pattern_, ".png"));
+  testing_util::WriteBytes(dir_ / "big.png", testing_util::Encode(pattern_, ".png"));
   options_.max_file_bytes = 1000;
   const ImageRecord record = Inspect("big.png");
   EXPECT_EQ(record.status.code(), StatusCode::kResourceExhausted);
@@ -204,7 +185,7 @@ TEST_F(ImageReaderTest, RefusesFilesOverTheByteLimit) {
 }
 
 TEST_F(ImageReaderTest, AppliesExifOrientation) {
-  WriteJpegWithOrientation(dir_ / "rotated.jpg", testing::Encode(pattern_, ".jpg"), 6);
+  WriteJpegWithExif(dir_ / "rotated.jpg", testing_util::Encode(pattern_, ".jpg"), 6);
   const ImageRecord record = Inspect("rotated.jpg");
   ASSERT_TRUE(record.accepted()) << record.status;
   EXPECT_EQ(record.info.orientation, 6);
@@ -235,7 +216,7 @@ TEST_F(ImageReaderTest, AppliesExifOrientation) {
 }
 
 TEST_F(ImageReaderTest, ReadImageDownscalesToWorkingSize) {
-  testing::WriteBytes(dir_ / "photo.png", testing::Encode(pattern_, ".png"));
+  testing_util::WriteBytes(dir_ / "photo.png", testing_util::Encode(pattern_, ".png"));
   options_.max_side = 160;
   const ImageRecord record = Inspect("photo.png");
   ASSERT_TRUE(record.accepted());
@@ -249,7 +230,7 @@ TEST_F(ImageReaderTest, ReadImageDownscalesToWorkingSize) {
   // Grey images come back as 3-channel BGR.
   cv::Mat grey;
   cv::extractChannel(pattern_, grey, 0);
-  testing::WriteBytes(dir_ / "grey.png", testing::Encode(grey, ".png"));
+  testing_util::WriteBytes(dir_ / "grey.png", testing_util::Encode(grey, ".png"));
   options_.max_side = 0;
   const Result<cv::Mat> grey_image = ReadImage(dir_ / "grey.png", options_);
   ASSERT_TRUE(grey_image.ok());

@@ -35,15 +35,15 @@ TEST(IngestOptions, DefaultsAreValid) {
 class IngestTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const cv::Mat pattern = testing::TestPattern(320, 240);
-    const std::vector<std::uint8_t> jpeg = testing::Encode(pattern, ".jpg");
-    testing::WriteBytes(dir_ / "d_good.jpg", jpeg);
-    testing::WriteText(dir_ / "b_text.jpg", "not an image");
-    testing::WriteBytes(dir_ / "c_cut.jpg",
-                        std::vector<std::uint8_t>(jpeg.begin(), jpeg.begin() + jpeg.size() / 2));
-    testing::WriteBytes(dir_ / "a_good.png", testing::Encode(pattern, ".png"));
-    testing::WriteBytes(dir_ / "e_good.tif", testing::Encode(pattern, ".tif"));
-    testing::WriteText(dir_ / ".hidden.jpg", "ignored");
+    const cv::Mat pattern = testing_util::TestPattern(320, 240);
+    const std::vector<std::uint8_t> jpeg = testing_util::Encode(pattern, ".jpg");
+    testing_util::WriteBytes(dir_ / "d_good.jpg", jpeg);
+    testing_util::WriteText(dir_ / "b_text.jpg", "not an image");
+    testing_util::WriteBytes(dir_ / "c_cut.jpg", std::vector<std::uint8_t>(
+                                                     jpeg.begin(), jpeg.begin() + jpeg.size() / 2));
+    testing_util::WriteBytes(dir_ / "a_good.png", testing_util::Encode(pattern, ".png"));
+    testing_util::WriteBytes(dir_ / "e_good.tif", testing_util::Encode(pattern, ".tif"));
+    testing_util::WriteText(dir_ / ".hidden.jpg", "ignored");
     std::filesystem::create_directory(dir_ / "subfolder");
   }
 
@@ -59,7 +59,7 @@ class IngestTest : public ::testing::Test {
     return names;
   }
 
-  testing::ScopedTempDir dir_;
+  testing_util::ScopedTempDir dir_;
   IngestOptions options_;
   Progress progress_;
   CancelToken cancel_;

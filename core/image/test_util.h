@@ -15,7 +15,7 @@
 #include <vector>
 
 namespace reconduit {
-namespace testing {
+namespace testing_util {
 
 // A fresh directory under the system temp directory, removed with its contents on destruction.
 class ScopedTempDir {
@@ -90,7 +90,7 @@ inline std::vector<std::uint8_t> PngHeaderOnly(std::uint32_t width, std::uint32_
   return bytes;
 }
 
-}  // namespace testing
+}  // namespace testing_util
 }  // namespace reconduit
 
 #endif  // RECONDUIT_CORE_IMAGE_TEST_UTIL_H_

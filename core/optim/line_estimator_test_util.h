@@ -8,7 +8,7 @@
 #include <vector>
 
 namespace reconduit {
-namespace testing {
+namespace testing_util {
 
 struct Line {
   double slope = 0.0;
@@ -68,7 +68,7 @@ struct RefiningLineEstimator : LineEstimator {
   }
 };
 
-}  // namespace testing
+}  // namespace testing_util
 }  // namespace reconduit
 
 #endif  // RECONDUIT_CORE_OPTIM_LINE_ESTIMATOR_TEST_UTIL_H_

@@ -12,9 +12,9 @@
 namespace reconduit {
 namespace {
 
-using testing::Line;
-using testing::LineEstimator;
-using testing::RefiningLineEstimator;
+using testing_util::Line;
+using testing_util::LineEstimator;
+using testing_util::RefiningLineEstimator;
 
 struct NoisyLine {
   std::vector<double> x, y;

@@ -12,8 +12,8 @@
 namespace reconduit {
 namespace {
 
-using testing::Line;
-using testing::LineEstimator;
+using testing_util::Line;
+using testing_util::LineEstimator;
 
 // 50 % outliers: inliers on y = 2x + 1 (plus optional noise), outliers at least 1.0 away from
 // the line, interleaved so that position says nothing.

@@ -11,9 +11,9 @@
 namespace reconduit {
 namespace {
 
-using testing::DistanceUpToScale;
-using testing::MakeTwoViewScene;
-using testing::SceneKind;
+using testing_util::DistanceUpToScale;
+using testing_util::MakeTwoViewScene;
+using testing_util::SceneKind;
 
 double MaxAbsEpipolar(const std::vector<Eigen::Vector2d>& p1,
                       const std::vector<Eigen::Vector2d>& p2,

@@ -11,9 +11,9 @@
 namespace reconduit {
 namespace {
 
-using testing::DistanceUpToScale;
-using testing::MakeTwoViewScene;
-using testing::SceneKind;
+using testing_util::DistanceUpToScale;
+using testing_util::MakeTwoViewScene;
+using testing_util::SceneKind;
 
 TEST(HomographyMatrixEstimator, RecoversThePlaneHomographyFromFourPoints) {
   for (unsigned seed = 0; seed < 10; ++seed) {
