@@ -102,6 +102,18 @@ std::vector<OptionSpec> MakeSpecs() {
       "The principal point of models with 8 or more photos: 'auto' refines it in the final "
       "bundle adjustment when the photos clearly show it is off the image centre, 'center' "
       "keeps the image centre, 'refine' always refines it."));
+  specs.push_back(BooleanOption(
+      "dense_matching", &PipelineOptions::dense_matching,
+      "Compute a depth map for every photo and fuse them into a dense point cloud (dense.ply). "
+      "Off, the result holds the cameras and the sparse points only."));
+  specs.push_back(IntegerOption(
+      "dense_max_image_side", &PipelineOptions::dense_max_image_side, 256, 20000,
+      "Depth maps are computed on copies of the photos whose longer side is at most this many "
+      "pixels. Larger is more detailed and slower: time grows with the number of pixels."));
+  specs.push_back(IntegerOption(
+      "dense_min_views", &PipelineOptions::dense_min_views, 2, 32,
+      "A dense point is kept only where at least this many photos agree on its depth; more "
+      "gives fewer, more reliable points."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;

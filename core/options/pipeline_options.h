@@ -42,6 +42,14 @@ struct PipelineOptions {
   // see core/sfm/incremental_mapper.h), "center" keeps the image centre, "refine" always
   // refines it. ["auto", "center", "refine"]
   std::string principal_point = "auto";
+  // Dense matching (the dense stage): depth maps of every registered photo fused into a dense
+  // cloud. Off: the job ends with the cameras and the sparse points. [bool]
+  bool dense_matching = true;
+  // Depth maps are computed on copies of the photos whose longer side is at most this
+  // (pixels). [256, 20000]
+  int dense_max_image_side = 1600;
+  // A dense point needs this many photos whose depths agree on it. [2, 32]
+  int dense_min_views = 2;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 

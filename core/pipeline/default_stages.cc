@@ -1,5 +1,6 @@
 #include "core/pipeline/default_stages.h"
 
+#include "core/pipeline/stages/dense_stage.h"
 #include "core/pipeline/stages/export_stage.h"
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
@@ -24,6 +25,7 @@ std::vector<std::pair<std::string, StageFactory>> WorkStages() {
       {"pairs", [] { return std::make_unique<PairsStage>(); }},
       {"matching", [] { return std::make_unique<MatchingStage>(); }},
       {"sparse", [] { return std::make_unique<SparseStage>(); }},
+      {"dense", [] { return std::make_unique<DenseStage>(); }},
   };
 }
 

@@ -13,6 +13,8 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr char kMarker[] = "stage.json";
+// The options an attempt of a KeepsFinishedParts() stage started with.
+constexpr char kAttempt[] = "attempt.json";
 
 // The values of the options `stage` depends on.
 nlohmann::json UsedOptionValues(const Stage& stage, const PipelineOptions& options) {
@@ -45,6 +47,29 @@ std::optional<StageRecord> ReadMarker(const Stage& stage,
     LOG_WARNING << "ignoring unreadable " << (stage_dir / kMarker).string() << ": " << e.what();
   }
   return std::nullopt;
+}
+
+// Makes `stage_dir` ready for a run of `stage`: emptied (outputs of an interrupted earlier
+// attempt), unless the stage keeps finished parts, `after_resumed` (every stage before it
+// resumed) and the interrupted attempt used the same options (Stage::KeepsFinishedParts).
+Status PrepareStageDir(const Stage& stage,
+                       const fs::path& stage_dir,
+                       const PipelineOptions& options,
+                       bool after_resumed) {
+  const nlohmann::json used = UsedOptionValues(stage, options);
+  if (stage.KeepsFinishedParts() && after_resumed) {
+    auto text = ReadFile(stage_dir / kAttempt);
+    if (text.ok() && nlohmann::json::parse(*text, nullptr, false) == used) {
+      LOG_INFO << "stage " << stage.Name() << ": keeping the parts an earlier attempt finished";
+      return Status::Ok();
+    }
+  }
+  std::error_code ec;
+  fs::remove_all(stage_dir, ec);
+  fs::create_directories(stage_dir, ec);
+  if (ec) return Status::Internal("cannot create " + stage_dir.string() + ": " + ec.message());
+  if (stage.KeepsFinishedParts()) return WriteFileAtomically(stage_dir / kAttempt, used.dump());
+  return Status::Ok();
 }
 
 }  // namespace
@@ -224,13 +249,8 @@ PipelineResult RunPipeline(const std::vector<std::unique_ptr<Stage>>& stages,
     if (cancel.IsCanceled()) {
       return finish(StageStatus::kCanceled, name, "canceled before stage " + name);
     }
-    std::error_code ec;
-    fs::remove_all(stage_dir, ec);  // Outputs of an interrupted earlier attempt.
-    fs::create_directories(stage_dir, ec);
-    if (ec) {
-      return finish(StageStatus::kFailed, name,
-                    "cannot create " + stage_dir.string() + ": " + ec.message());
-    }
+    const Status prepared = PrepareStageDir(stage, stage_dir, options, i == finished.size());
+    if (!prepared.ok()) return finish(StageStatus::kFailed, name, prepared.message());
 
     const double start = boundaries[i];
     const double end = boundaries[i + 1];

@@ -2,7 +2,8 @@
 //
 // Before the first stage the runner announces the plan (which stages it will resume). For each
 // stage it: skips it when work/<stage>/stage.json says it succeeded earlier with the same values
-// of the options it uses (resume after a crash or restart); otherwise empties work/<stage>/,
+// of the options it uses (resume after a crash or restart); otherwise empties work/<stage>/
+// (unless the stage keeps finished parts, Stage::KeepsFinishedParts),
 // runs it with a Progress that feeds the overall figure, turns CanceledError into
 // kCanceled and any other exception into kFailed with its message, records time and peak memory,
 // and writes stage.json atomically on success. It stops at the first stage that does not succeed

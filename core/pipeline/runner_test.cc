@@ -292,6 +292,64 @@ TEST_F(RunnerTest, AFailedStageEndsAtTheFigureItStartedFrom) {
   EXPECT_NEAR(ends[1], 1.0 / 3.0, 1e-12) << "b failed: the figure stays at its start";
 }
 
+// A stage that makes three parts, one file each, skipping those an earlier attempt finished, and
+// throws after `fail_after` new parts (-1: never).
+class PartsStage : public Stage {
+ public:
+  PartsStage(int fail_after, int* made) : fail_after_(fail_after), made_(made) {}
+  std::string_view Name() const override { return "parts"; }
+  std::string_view Title() const override { return "Parts"; }
+  bool KeepsFinishedParts() const override { return true; }
+  std::vector<std::string> OptionsUsed() const override { return {"use_exif"}; }
+  StageResult Run(StageContext& context) const override {
+    int made_now = 0;
+    for (int part = 0; part < 3; ++part) {
+      const fs::path file = context.stage_dir / ("part" + std::to_string(part));
+      if (fs::exists(file)) continue;
+      if (made_now == fail_after_) throw std::runtime_error("killed");
+      std::ofstream(file) << part;
+      ++made_now;
+      ++*made_;
+    }
+    return StageResult::Success();
+  }
+
+ private:
+  int fail_after_;
+  int* made_;
+};
+
+TEST_F(RunnerTest, AStageThatKeepsFinishedPartsRedoesOnlyTheRest) {
+  int made = 0;
+  auto stages = [&](int fail_after) {
+    std::vector<std::unique_ptr<Stage>> s;
+    s.push_back(std::make_unique<OptionStage>("a", &runs_[0]));  // max_features only.
+    s.push_back(std::make_unique<PartsStage>(fail_after, &made));
+    return s;
+  };
+  EXPECT_EQ(RunPipeline(stages(2), workspace_, options_, CancelToken()).status,
+            StageStatus::kFailed);
+  EXPECT_EQ(made, 2);
+  EXPECT_EQ(RunPipeline(stages(-1), workspace_, options_, CancelToken()).status,
+            StageStatus::kSuccess);
+  EXPECT_EQ(made, 3) << "the two finished parts are kept";
+  EXPECT_EQ(runs_[0], 1);
+
+  // Interrupted again with other options: the parts are made with the new ones.
+  fs::remove(workspace_.StageDir("parts") / "stage.json");
+  options_.use_exif = !options_.use_exif;
+  RunPipeline(stages(-1), workspace_, options_, CancelToken());
+  EXPECT_EQ(made, 6) << "options changed: every part again";
+  EXPECT_EQ(runs_[0], 1);
+
+  // When a stage before it runs again, its parts are stale.
+  fs::remove(workspace_.StageDir("parts") / "stage.json");
+  fs::remove(workspace_.StageDir("a") / "stage.json");
+  RunPipeline(stages(-1), workspace_, options_, CancelToken());
+  EXPECT_EQ(made, 9) << "stage a ran again: every part again";
+  EXPECT_EQ(runs_[0], 2);
+}
+
 TEST_F(RunnerTest, InvalidOptionsThrow) {
   options_.min_image_side = 1;
   EXPECT_THROW(

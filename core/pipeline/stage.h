@@ -123,6 +123,14 @@ class Stage {
   // False for a stage that must run every time (packaging: its output depends on which
   // stages ran). A non-resumable stage also ends resuming for the stages after it.
   virtual bool Resumable() const { return true; }
+  // True for a stage that keeps the parts it finished when a run is interrupted inside it (the
+  // dense stage's depth maps, one per photo), so that the next run redoes only the rest. The
+  // runner then leaves the stage's folder as the interrupted attempt left it, provided every
+  // stage before it resumed and the options the stage uses are unchanged (recorded in
+  // attempt.json when an attempt starts); otherwise it empties the folder as for any stage.
+  // The stage must treat what it finds as unverified: parts are written atomically, and it
+  // checks each one before using it.
+  virtual bool KeepsFinishedParts() const { return false; }
   // The pipeline options this stage's outputs depend on (names from PipelineOptionSpecs). The
   // runner records their values in stage.json and resumes the stage only while they are
   // unchanged, so a rerun with other options never reuses outputs made with the old ones.

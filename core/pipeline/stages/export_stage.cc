@@ -5,6 +5,7 @@
 #include "core/io/colmap_text.h"
 #include "core/io/ply.h"
 #include "core/io/reconstruction_json.h"
+#include "core/pipeline/stages/dense_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 
 #include <algorithm>
@@ -54,6 +55,7 @@ struct Exporter {
 };
 constexpr Exporter kExporters[] = {
     {"sparse", ExportSparse},
+    {"dense", ExportDenseResults},
 };
 
 bool StageSucceeded(const std::vector<StageRecord>& previous, std::string_view stage) {

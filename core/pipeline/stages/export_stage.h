@@ -8,6 +8,11 @@
 //   sparse/                 COLMAP text model (cameras.txt, images.txt, points3D.txt)
 //   bundle/                 Bundler v0.3 (bundle.out, list.txt)
 //   sparse.ply              the coloured sparse points
+// and from the dense stage (dense_stage.h, unless it skipped):
+//   dense.ply               the fused cloud with normals and visibility
+//   depth/<name>.png, .json every photo's depth map (16-bit) with its range, camera and pose
+//   quality/<name>.png      every photo's quality map (how many photos agree, 8-bit)
+//   report/dense/           previews of both
 // A stage that did not run (a run stopped early with --until) exports nothing. A later stage
 // (dense points, mesh, texture) adds its deliverables with one entry in the exporter table of
 // export_stage.cc.
