@@ -52,7 +52,13 @@ bool ResetHighWaterMark() {
 
 }  // namespace
 
-std::int64_t PeakMemoryBytes() { return std::max(g_peak_before_reset.load(), KernelPeakBytes()); }
+std::int64_t PeakMemoryBytes() {
+  // ru_maxrss and VmHWM read the same mark but may differ by a few pages (the kernel's
+  // resident counters are cached per thread): the larger keeps a stage's own peak, read first,
+  // from exceeding the process's.
+  return std::max(
+      {g_peak_before_reset.load(), KernelPeakBytes(), HighWaterMarkBytes().value_or(0)});
+}
 
 std::int64_t CurrentMemoryBytes() {
   std::ifstream statm("/proc/self/statm");

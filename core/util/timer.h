@@ -21,7 +21,7 @@ class Timer {
 };
 
 // Peak resident set size of this process so far, in bytes: the kernel's high-water mark
-// (getrusage ru_maxrss), and the marks StagePeakMemory saw before it reset the kernel's.
+// (getrusage ru_maxrss, VmHWM), and the marks StagePeakMemory saw before it reset the kernel's.
 std::int64_t PeakMemoryBytes();
 // Current resident set size of this process, in bytes (/proc/self/statm); 0 if unknown.
 std::int64_t CurrentMemoryBytes();
@@ -36,7 +36,11 @@ std::int64_t CurrentMemoryBytes();
 // same mark, and it drops with it (measured on Linux 6.18: 200 MiB touched and freed, reset,
 // 20 MiB touched: VmHWM and ru_maxrss both read 23 MiB). So before resetting, the constructor
 // folds the mark into the figure PeakMemoryBytes() reports, which therefore stays the whole
-// process's peak.
+// process's peak. Measurements from outside see only the mark since the latest reset: the
+// parent's wait4 or `/usr/bin/time -f %M` of a run that reset it (measured: `reconduit
+// reconstruct` on kermit peaks at 236 MiB in features; `time` says 104 MiB, the mark of the
+// last stages). Read the run's own figure instead (report.json peak_memory_bytes, the command
+// line's table).
 //
 // Where the mark cannot be reset (no /proc, /proc read-only in a sandbox, a kernel without
 // clear_refs), or when another stretch began meanwhile and reset it again (stretches do not
