@@ -66,10 +66,25 @@ ChildRun RunChild(const std::vector<std::string>& argv, const fs::path& log) {
 
 double MiB(std::int64_t bytes) { return bytes / (1024.0 * 1024.0); }
 
-void PrintRow(const std::string& name, const std::string& status, double seconds, double mib) {
+// A row: name, status, seconds, the process's peak MiB and, when known, the stage's own peak
+// MiB (our stages; COLMAP's steps are processes of their own, so their peak is their own).
+void PrintRow(const std::string& name,
+              const std::string& status,
+              double seconds,
+              double mib,
+              std::optional<double> stage_mib = std::nullopt) {
   std::cout << "  " << std::left << std::setw(20) << name << std::setw(12) << status << std::right
             << std::fixed << std::setprecision(2) << std::setw(10) << seconds << std::setw(12)
-            << std::setprecision(1) << mib << "\n";
+            << std::setprecision(1) << mib;
+  if (stage_mib) std::cout << std::setw(12) << *stage_mib;
+  std::cout << "\n";
+}
+
+void PrintHeader(bool with_stage_peak) {
+  std::cout << "  " << std::left << std::setw(32) << "" << std::right << std::setw(10) << "seconds"
+            << std::setw(12) << "peak MiB";
+  if (with_stage_peak) std::cout << std::setw(12) << "own MiB";
+  std::cout << "\n";
 }
 
 // Per camera id, the focal length's standard deviation that the sparse stage recorded in
@@ -138,6 +153,7 @@ std::optional<ColmapResult> RunColmap(const fs::path& images,
         (dir / "sparse").string()}},
   };
   std::cout << "\nCOLMAP (" << log.string() << ")\n";
+  PrintHeader(/*with_stage_peak=*/false);
   ColmapResult result;
   for (const Step& step : steps) {
     const ChildRun run = RunChild(step.argv, log);
@@ -247,9 +263,15 @@ OurRun RunOurs(const std::vector<std::unique_ptr<Stage>>& stages,
                const std::optional<std::vector<GroundTruthCamera>>& ground_truth) {
   OurRun run;
   run.result = RunPipeline(stages, workspace, options, CancelToken());
+  // "peak": the process's so far; "own": the stage's own high-water mark (StagePeakMemory),
+  // absent where the kernel's mark could not be reset.
+  PrintHeader(/*with_stage_peak=*/true);
   for (const StageRecord& record : run.result.stages) {
     PrintRow(record.name, std::string(StageStatusName(record.status)), record.seconds,
-             MiB(record.peak_memory_bytes));
+             MiB(record.peak_memory_bytes),
+             record.stage_peak_memory_own
+                 ? std::optional<double>(MiB(record.stage_peak_memory_bytes))
+                 : std::nullopt);
     if (record.name != "package") run.seconds += record.seconds;
     run.peak_memory_bytes = std::max(run.peak_memory_bytes, record.peak_memory_bytes);
   }

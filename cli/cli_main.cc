@@ -134,17 +134,26 @@ PipelineResult RunWithProgress(const std::vector<std::unique_ptr<Stage>>& stages
   return result;
 }
 
-// The table of stages with status, time and peak memory.
+// The table of stages with status, time, the stage's own peak memory and the process's ("-"
+// where the stage's own is unknown: the kernel's mark could not be reset, or an old marker).
 void PrintStageTable(const PipelineResult& result) {
   std::cout << "\n"
             << std::left << std::setw(12) << "stage" << std::setw(12) << "status" << std::right
-            << std::setw(10) << "seconds" << std::setw(16) << "peak memory MiB"
+            << std::setw(10) << "seconds" << std::setw(16) << "stage peak MiB" << std::setw(18)
+            << "process peak MiB"
             << "\n";
   for (const StageRecord& record : result.stages) {
+    std::ostringstream stage_peak;
+    if (record.stage_peak_memory_own) {
+      stage_peak << std::fixed << std::setprecision(1)
+                 << record.stage_peak_memory_bytes / (1024.0 * 1024.0);
+    } else {
+      stage_peak << "-";
+    }
     std::cout << std::left << std::setw(12) << record.name << std::setw(12)
               << (record.resumed ? "resumed" : std::string(StageStatusName(record.status)))
               << std::right << std::setw(10) << std::fixed << std::setprecision(2) << record.seconds
-              << std::setw(16) << std::setprecision(1)
+              << std::setw(16) << stage_peak.str() << std::setw(18) << std::setprecision(1)
               << record.peak_memory_bytes / (1024.0 * 1024.0) << "\n";
   }
   std::cout << std::left << std::setw(24) << "total" << std::right << std::setw(10)

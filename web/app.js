@@ -3,7 +3,9 @@
 'use strict';
 
 const API = '/api/v1';
-const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'export', 'package'];
+const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'dense', 'export', 'package'];
+// A per-map table longer than this starts collapsed.
+const LONG_MAP_LIST = 12;
 const FINAL = new Set(['succeeded', 'failed', 'canceled']);
 
 const $ = (id) => document.getElementById(id);
@@ -217,7 +219,9 @@ function select(id) {
     lastEventId = 0;
     shownFilesFor = null;
     $('log').textContent = '';
-    for (const part of ['cameras', 'rejected', 'pictures', 'files-list']) $(part).replaceChildren();
+    for (const part of ['maps', 'cameras', 'rejected', 'pictures', 'files-list']) {
+      $(part).replaceChildren();
+    }
   }
   if (location.hash !== `#${id}`) history.replaceState(null, '', `#${id}`);
   $('job').hidden = false;
@@ -248,6 +252,7 @@ function summaryText(summary) {
   if (!summary) return '';
   const parts = [];
   for (const [key, value] of Object.entries(summary)) {
+    if (key === 'skipped_reason') continue;  // Shown as the stage's status.
     if (typeof value === 'number') {
       parts.push(`${key.replaceAll('_', ' ')} ${Number.isInteger(value) ? value : value.toFixed(3)}`);
     } else if (typeof value === 'string' && key !== 'archive_sha256') {
@@ -255,6 +260,93 @@ function summaryText(summary) {
     }
   }
   return parts.join(', ');
+}
+
+// Why a stage was skipped (its status "skipped", or a summary's skipped_reason: the stage could
+// not work on these photos and the job went on without it), or null when it was not.
+function skippedReason(s) {
+  const reason = s.summary && s.summary.skipped_reason;
+  if (s.status !== 'skipped' && !reason) return null;
+  return reason || s.message || 'no reason given';
+}
+
+// The stage's own peak memory (the high-water mark since it began), or while it runs the
+// memory in use now; a dash where only the process's peak is known (the worker could not
+// reset the kernel's mark, or the stage ran before stages kept their own).
+function stagePeakCell(s) {
+  if (s.stage_peak_memory_own && s.stage_peak_memory_bytes) {
+    return el('td', {class: 'memory'}, bytes(s.stage_peak_memory_bytes));
+  }
+  if (s.status === 'running' && s.memory_bytes) {
+    return el('td', {class: 'memory', title: 'In use now'}, `${bytes(s.memory_bytes)} now`);
+  }
+  if (s.peak_memory_bytes) {
+    return el('td', {class: 'memory', title: 'Not measured: only the process\'s peak is known'},
+              '—');
+  }
+  return el('td', {class: 'memory'});
+}
+
+function stageRow(job, name) {
+  const s = (job.stages || {})[name] || {};
+  const skipped = skippedReason(s);
+  const status = skipped ? 'skipped' : s.status || (job.stage === name ? 'running' : '');
+  let found = s.message && !s.status ? s.message : summaryText(s.summary);
+  if (skipped) found = skipped;
+  return el('tr', {'data-stage': name, class: skipped ? 'skipped' : null},
+      el('td', {}, s.title || name),
+      el('td', {}, status),
+      el('td', {class: 'progress'}, el('progress', {max: 1, value: s.progress || 0}),
+         s.total ? ` ${s.done} / ${s.total}` : ''),
+      el('td', {}, duration(s.seconds)),
+      stagePeakCell(s),
+      el('td', {class: 'memory'}, s.peak_memory_bytes ? bytes(s.peak_memory_bytes) : ''),
+      el('td', {}, found));
+}
+
+// The stages to list: every stage of the pipeline; but a succeeded job has an entry for each
+// stage it ran, so a stage it has none for was not part of its pipeline (a job from before
+// that stage existed) and is left out.
+function shownStages(job) {
+  const stages = job.stages || {};
+  return STAGES.filter((name) => job.state !== 'succeeded' || name in stages);
+}
+
+function percent(fraction) {
+  return typeof fraction === 'number' ? `${Math.round(fraction * 100)} %` : '';
+}
+
+// Whether the person opened or closed a stage's per-map table, kept across the refreshes.
+const mapsOpen = new Map();
+
+// Per stage whose summary lists "maps" (the dense stage: one depth map per photo): the time of
+// each map and the share of its pixels with a depth and with a fused point. Long lists start
+// collapsed.
+function renderMaps(job) {
+  const sections = [];
+  for (const name of shownStages(job)) {
+    const s = (job.stages || {})[name];
+    const maps = s && s.summary && s.summary.maps;
+    if (!Array.isArray(maps) || maps.length === 0) continue;
+    const key = `${job.id}/${name}`;
+    const open = mapsOpen.has(key) ? mapsOpen.get(key) : maps.length <= LONG_MAP_LIST;
+    const total = maps.reduce((sum, m) => sum + (typeof m.seconds === 'number' ? m.seconds : 0), 0);
+    const rows = maps.map((m) => el('tr', {},
+        el('td', {}, m.image || ''),
+        el('td', {}, duration(m.seconds)),
+        el('td', {}, percent(m.depth_fraction)),
+        el('td', {}, percent(m.fused_fraction))));
+    const details = el('details', {class: 'maps', 'data-stage': name, open},
+        el('summary', {}, `${s.title || name}: ${maps.length} map${maps.length === 1 ? '' : 's'}, ` +
+                          `${duration(total)} in all`),
+        el('table', {},
+           el('thead', {}, el('tr', {}, el('th', {}, 'Photo'), el('th', {}, 'Time'),
+                              el('th', {}, 'With depth'), el('th', {}, 'Fused'))),
+           el('tbody', {}, rows)));
+    details.addEventListener('toggle', () => mapsOpen.set(key, details.open));
+    sections.push(details);
+  }
+  $('maps').replaceChildren(...(sections.length > 0 ? [el('h3', {}, 'Per map'), ...sections] : []));
 }
 
 function renderCameras(job) {
@@ -385,7 +477,12 @@ async function refreshJob() {
   $('job-title').textContent = `Job ${job.id.slice(0, 8)}`;
   const error = job.error ? el('p', {class: 'error'}, job.error.message || JSON.stringify(job.error))
                           : '';
-  $('job-summary').replaceChildren(el('p', {}, facts), error);
+  const skipped = Object.entries(job.stages || {})
+      .map(([name, s]) => [s.title || name, skippedReason(s)])
+      .filter(([, reason]) => reason !== null)
+      .map(([title, reason]) => `${title} skipped: ${reason}`);
+  const skippedNote = skipped.length > 0 ? el('p', {class: 'skipped'}, skipped.join('; ')) : '';
+  $('job-summary').replaceChildren(el('p', {}, facts), skippedNote, error);
   const actions = [];
   if (job.state === 'succeeded') {
     actions.push(el('a', {href: job.links.result, download: `reconduit-${job.id.slice(0, 8)}.zip`},
@@ -404,17 +501,8 @@ async function refreshJob() {
                     'Delete'));
   }
   $('job-actions').replaceChildren(...actions);
-  const stages = job.stages || {};
-  $('stage-rows').replaceChildren(...STAGES.map((name) => {
-    const s = stages[name] || {};
-    return el('tr', {},
-        el('td', {}, s.title || name),
-        el('td', {}, s.status || (job.stage === name ? 'running' : '')),
-        el('td', {class: 'progress'}, el('progress', {max: 1, value: s.progress || 0}),
-           s.total ? ` ${s.done} / ${s.total}` : ''),
-        el('td', {}, duration(s.seconds)),
-        el('td', {}, s.message && !s.status ? s.message : summaryText(s.summary)));
-  }));
+  $('stage-rows').replaceChildren(...shownStages(job).map((name) => stageRow(job, name)));
+  renderMaps(job);
   renderCameras(job);
   renderRejected(job);
   await renderFiles(job);

@@ -544,7 +544,9 @@ class JobRun {
         {"status",
          record.resumed ? std::string("resumed") : std::string(StageStatusName(record.status))},
         {"seconds", record.seconds},
-        {"peak_memory_bytes", record.peak_memory_bytes}};
+        {"peak_memory_bytes", record.peak_memory_bytes},
+        {"stage_peak_memory_bytes", record.stage_peak_memory_bytes},
+        {"stage_peak_memory_own", record.stage_peak_memory_own}};
     if (success) {
       patch["progress"] = 1.0;
       patch["summary"] = record.summary;
@@ -566,6 +568,9 @@ class JobRun {
                        std::string(StageStatusName(record.status)) + " after " +
                        FormatSeconds(record.seconds) + ", peak memory " +
                        FormatMiB(record.peak_memory_bytes);
+    if (record.stage_peak_memory_own) {
+      text += " (the stage's own " + FormatMiB(record.stage_peak_memory_bytes) + ")";
+    }
     LogLevel level = LogLevel::kInfo;
     if (success && !record.summary.empty()) text += ": " + record.summary.dump();
     if (!success) {

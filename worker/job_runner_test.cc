@@ -158,6 +158,12 @@ TEST_F(JobRunnerTest, RealStagesSucceedWithResultArchive) {
     EXPECT_TRUE(job.stage_progress[stage].contains("seconds")) << stage;
   }
   EXPECT_GT(job.stage_progress["features"].value("peak_memory_bytes", 0), 0);
+  // The stage's own peak, never above the process's.
+  const std::int64_t stage_peak =
+      job.stage_progress["features"].value("stage_peak_memory_bytes", std::int64_t{0});
+  EXPECT_GT(stage_peak, 0);
+  EXPECT_LE(stage_peak, job.stage_progress["features"].value("peak_memory_bytes", std::int64_t{0}));
+  EXPECT_TRUE(job.stage_progress["features"].contains("stage_peak_memory_own"));
 
   // result.zip: the size and hash in the job are the file's; the manifest lists report.json.
   const fs::path zip = layout_.ResultZip(id);

@@ -97,8 +97,14 @@ std::string_view StageStatusName(StageStatus status) {
 }
 
 nlohmann::json StageRecord::ToJson() const {
-  return {{"name", name},       {"status", StageStatusName(status)},      {"message", message},
-          {"seconds", seconds}, {"peak_memory_bytes", peak_memory_bytes}, {"summary", summary},
+  return {{"name", name},
+          {"status", StageStatusName(status)},
+          {"message", message},
+          {"seconds", seconds},
+          {"peak_memory_bytes", peak_memory_bytes},
+          {"stage_peak_memory_bytes", stage_peak_memory_bytes},
+          {"stage_peak_memory_own", stage_peak_memory_own},
+          {"summary", summary},
           {"options", options}};
 }
 
@@ -113,6 +119,9 @@ StageRecord StageRecord::FromJson(const nlohmann::json& json) {
   record.message = json.value("message", "");
   record.seconds = json.value("seconds", 0.0);
   record.peak_memory_bytes = json.value("peak_memory_bytes", std::int64_t{0});
+  // Markers written before stages kept their own peak have neither: unknown, not the stage's.
+  record.stage_peak_memory_bytes = json.value("stage_peak_memory_bytes", std::int64_t{0});
+  record.stage_peak_memory_own = json.value("stage_peak_memory_own", false);
   record.summary = json.value("summary", nlohmann::json::object());
   // Markers written before options were recorded have none: they match no stage that uses
   // options, so such a stage runs again.
@@ -161,11 +170,13 @@ std::vector<double> StageBoundaries(const std::vector<StagePlan>& plan) {
 }
 
 // Runs `stage` in its (fresh) folder: its exceptions become the record's status, time and peak
-// memory are recorded, and stage.json is written when it succeeded.
+// memory (the stage's own and the process's) are recorded, and stage.json is written when it
+// succeeded.
 StageRecord RunStage(const Stage& stage, StageContext& context, const PipelineOptions& options) {
   const std::string name(stage.Name());
   LOG_INFO << "stage " << name << ": " << stage.Title();
   const Timer timer;
+  const StagePeakMemory memory;
   StageRecord record;
   record.name = name;
   record.resumable = stage.Resumable();
@@ -184,6 +195,8 @@ StageRecord RunStage(const Stage& stage, StageContext& context, const PipelineOp
     record.message = e.what();
   }
   record.seconds = timer.ElapsedSeconds();
+  record.stage_peak_memory_bytes = memory.PeakBytes();
+  record.stage_peak_memory_own = memory.Own();
   record.peak_memory_bytes = PeakMemoryBytes();
 
   if (record.status == StageStatus::kSuccess) {

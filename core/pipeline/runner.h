@@ -5,8 +5,9 @@
 // of the options it uses (resume after a crash or restart); otherwise empties work/<stage>/
 // (unless the stage keeps finished parts, Stage::KeepsFinishedParts),
 // runs it with a Progress that feeds the overall figure, turns CanceledError into
-// kCanceled and any other exception into kFailed with its message, records time and peak memory,
-// and writes stage.json atomically on success. It stops at the first stage that does not succeed
+// kCanceled and any other exception into kFailed with its message, records time and peak memory
+// (the stage's own high-water mark, StagePeakMemory, and the process's), and writes stage.json
+// atomically on success. It stops at the first stage that does not succeed
 // and checks the cancel token between stages. Nothing here knows about databases or HTTP.
 #ifndef RECONDUIT_CORE_PIPELINE_RUNNER_H_
 #define RECONDUIT_CORE_PIPELINE_RUNNER_H_

@@ -85,6 +85,12 @@ struct StageRecord {
   std::string message;
   double seconds = 0.0;
   std::int64_t peak_memory_bytes = 0;  // Process peak RSS when the stage ended.
+  // The stage's own peak RSS: the high-water mark since it began (StagePeakMemory), which
+  // includes what the process held then. 0 when unknown (markers written before it was kept).
+  std::int64_t stage_peak_memory_bytes = 0;
+  // False when the kernel's mark could not be reset: stage_peak_memory_bytes is then the
+  // process's peak, not the stage's own.
+  bool stage_peak_memory_own = false;
   nlohmann::json summary = nlohmann::json::object();
   // The values of the stage's OptionsUsed() it ran with, {name: value}.
   nlohmann::json options = nlohmann::json::object();

@@ -157,3 +157,182 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   assert.deepEqual(errors, []);
   await page.close();
 });
+
+// ---------------------------------------------------------------------------------------------
+// What the page makes of a job's stage figures, from jobs the service could not produce on
+// demand: the browser's requests for one made-up job are answered here (the rest of the page
+// talks to the real server).
+
+const GiB = 1024 * 1024 * 1024;
+const MiB = 1024 * 1024;
+
+// A stage entry as the worker writes it (stage_progress.<stage>).
+function stageEntry(title, seconds, ownPeak, processPeak, summary = {}, extra = {}) {
+  return {title, status: 'success', progress: 1, seconds, peak_memory_bytes: processPeak,
+          stage_peak_memory_bytes: ownPeak, stage_peak_memory_own: true, summary, ...extra};
+}
+
+function fakeJob(id, state, stages) {
+  return {
+    id, state, stage: state === 'running' ? 'export' : null, progress: 0.9, stages,
+    finished_stages: [], created_at: '2026-12-02T08:00:00.000Z', elapsed_seconds: 120,
+    eta_seconds: null, attempts: 1, max_attempts: 3, cancel_requested: false,
+    counts: {images: 20, registered: 20, points: 5000}, error: null, options: {},
+    result: state === 'succeeded' ? {bytes: 1000, sha256: 'x'} : null,
+    links: {result: `/api/v1/jobs/${id}/result.zip`},
+  };
+}
+
+// The sparse stages, each with its time and memory; features's own peak is unknown (the worker
+// could not reset the kernel's mark).
+function sparseStages() {
+  return {
+    ingest: stageEntry('Reading photos', 0.5, 60 * MiB, 60 * MiB, {accepted: 20}),
+    features: stageEntry('Finding features', 12, 900 * MiB, 900 * MiB, {features: 80000},
+                         {stage_peak_memory_own: false}),
+    pairs: stageEntry('Choosing pairs', 2, 120 * MiB, 900 * MiB),
+    matching: stageEntry('Matching', 30, 400 * MiB, 900 * MiB),
+    sparse: stageEntry('Cameras and points', 25, 300 * MiB, 900 * MiB, {registered: 20}),
+  };
+}
+
+// Opens the page on job `id`, whose requests `answer(pathname)` serves; counts the job's fetches.
+async function openFakeJob(id, answer) {
+  const page = await browser.newPage({viewport: {width: 1200, height: 1600}});
+  const errors = [];
+  page.on('pageerror', (error) => errors.push(error.message));
+  const fetches = {job: 0};
+  await page.route((url) => url.pathname.startsWith(`/api/v1/jobs/${id}`), (route) => {
+    const pathname = new URL(route.request().url()).pathname;
+    if (pathname.endsWith('/events')) {
+      return route.fulfill({status: 200, contentType: 'application/x-ndjson', body: ''});
+    }
+    if (pathname.endsWith('/files')) return route.fulfill({json: {files: []}});
+    fetches.job += 1;
+    return route.fulfill({json: answer(pathname)});
+  });
+  await page.goto(`${baseUrl}/#${id}`);
+  await page.waitForSelector('#health.ok');
+  await page.waitForSelector('#stage-rows tr');
+  return {page, errors, fetches};
+}
+
+const cellTexts = (page, selector) =>
+    page.$$eval(selector, (cells) => cells.map((cell) => cell.textContent));
+
+test('shows each stage\'s time, own peak memory and the process\'s, and the per-map figures',
+     async () => {
+  const id = 'd'.repeat(32);
+  const maps = Array.from({length: 20}, (_, i) => ({
+    image: `IMG_${String(i).padStart(2, '0')}.jpg`, seconds: 2 + i / 10,
+    depth_fraction: 0.5 + i / 100, fused_fraction: 0.25, sources: [1, 2],
+  }));
+  const stages = {
+    ...sparseStages(),
+    dense: stageEntry('Dense matching', 61, 1.5 * GiB, 3 * GiB, {points: 1600000, maps}),
+    export: {title: 'Writing results', status: 'running', progress: 0.5, seconds: 3,
+             memory_bytes: 200 * MiB},
+  };
+  // Running: the page refreshes every 1.5 s.
+  const {page, errors, fetches} = await openFakeJob(id, () => fakeJob(id, 'running', stages));
+
+  // A row per stage of the pipeline, dense among them, with its time and both peaks.
+  assert.deepEqual(await cellTexts(page, '#stage-rows tr td:nth-child(1)'),
+                   ['Reading photos', 'Finding features', 'Choosing pairs', 'Matching',
+                    'Cameras and points', 'Dense matching', 'Writing results', 'package']);
+  const dense = '#stage-rows tr[data-stage="dense"]';
+  assert.deepEqual(await cellTexts(page, `${dense} td`),
+                   ['Dense matching', 'success', '', '1 min 1 s', '1.50 GiB', '3.00 GiB',
+                    'points 1600000']);
+  assert.equal(await page.textContent('#stage-rows tr[data-stage="pairs"] td:nth-child(5)'),
+               '120.0 MiB');
+  assert.equal(await page.textContent('#stage-rows tr[data-stage="pairs"] td:nth-child(6)'),
+               '900.0 MiB');
+  // features's own peak is unknown: a dash, not the process's figure passed off as its own.
+  assert.equal(await page.textContent('#stage-rows tr[data-stage="features"] td:nth-child(5)'),
+               '—');
+  // The running stage: the memory in use now.
+  assert.equal(await page.textContent('#stage-rows tr[data-stage="export"] td:nth-child(5)'),
+               '200.0 MiB now');
+
+  // The per-map table: 20 maps start collapsed, open on a click, and stay open.
+  const details = '#maps details[data-stage="dense"]';
+  assert.match(await page.textContent(`${details} summary`), /^Dense matching: 20 maps, 59 s in all$/);
+  assert.equal(await page.$eval(details, (d) => d.open), false);
+  assert.equal(await page.isVisible(`${details} table`), false);
+  await page.click(`${details} summary`);
+  assert.equal(await page.isVisible(`${details} table`), true);
+  assert.equal(await page.$$eval(`${details} tbody tr`, (rows) => rows.length), 20);
+  assert.deepEqual(await cellTexts(page, `${details} tbody tr:first-child td`),
+                   ['IMG_00.jpg', '2.0 s', '50 %', '25 %']);
+  assert.deepEqual(await cellTexts(page, `${details} tbody tr:last-child td`),
+                   ['IMG_19.jpg', '3.9 s', '69 %', '25 %']);
+  await waitForFetches(fetches, fetches.job + 2);
+  assert.equal(await page.$eval(details, (d) => d.open), true, 'a refresh keeps it open');
+  await page.screenshot({path: path.join(os.tmpdir(), 'reconduit-web-test-stages.png'),
+                         fullPage: true});
+  assert.deepEqual(errors, []);
+  await page.close();
+});
+
+// Resolves once the page fetched the job `count` times (it refreshes by itself).
+async function waitForFetches(fetches, count) {
+  const deadline = Date.now() + 10000;
+  while (fetches.job < count) {
+    if (Date.now() > deadline) throw new Error(`the page fetched the job ${fetches.job} times`);
+    await new Promise((resolve) => setTimeout(resolve, 100));
+  }
+  // The rendering of the last answer.
+  await new Promise((resolve) => setTimeout(resolve, 200));
+}
+
+test('a short per-map list starts open; a succeeded job without a dense stage lists none',
+     async () => {
+  const id = 'e'.repeat(32);
+  const maps = [{image: 'a.jpg', seconds: 4.2, depth_fraction: 0.71, fused_fraction: 0.55}];
+  const withDense = {...sparseStages(), dense: stageEntry('Dense matching', 4.2, GiB, 2 * GiB,
+                                                          {maps})};
+  let {page, errors} = await openFakeJob(id, () => fakeJob(id, 'succeeded', withDense));
+  assert.equal(await page.$eval('#maps details[data-stage="dense"]', (d) => d.open), true);
+  assert.deepEqual(await cellTexts(page, '#maps tbody tr td'), ['a.jpg', '4.2 s', '71 %', '55 %']);
+  assert.deepEqual(errors, []);
+  await page.close();
+
+  // A job from before the dense stage: its stages only, no per-map table.
+  ({page, errors} = await openFakeJob(id, () => fakeJob(id, 'succeeded', sparseStages())));
+  assert.deepEqual(await cellTexts(page, '#stage-rows tr td:nth-child(1)'),
+                   ['Reading photos', 'Finding features', 'Choosing pairs', 'Matching',
+                    'Cameras and points']);
+  assert.equal(await page.$$eval('#maps *', (nodes) => nodes.length), 0);
+  assert.deepEqual(errors, []);
+  await page.close();
+});
+
+test('a skipped stage shows as skipped with its reason, in its row and the job\'s summary',
+     async () => {
+  // Either way a stage can say it: a summary's skipped_reason, or the status "skipped".
+  const variants = [
+    stageEntry('Dense matching', 0.1, 50 * MiB, 900 * MiB,
+               {skipped_reason: 'too few registered photos (2; at least 3)'}),
+    {...stageEntry('Dense matching', 0.1, 50 * MiB, 900 * MiB), status: 'skipped',
+     summary: undefined, message: 'too few registered photos (2; at least 3)'},
+  ];
+  for (const [i, dense] of variants.entries()) {
+    const id = `${i}`.repeat(32);
+    const stages = {...sparseStages(), dense, export: stageEntry('Writing results', 1, 0, 0),
+                    package: stageEntry('Packing the results', 1, 0, 0)};
+    const {page, errors} = await openFakeJob(id, () => fakeJob(id, 'succeeded', stages));
+    const row = '#stage-rows tr[data-stage="dense"]';
+    assert.deepEqual(await cellTexts(page, `${row} td:nth-child(2)`), ['skipped'], `variant ${i}`);
+    assert.equal(await page.textContent(`${row} td:nth-child(7)`),
+                 'too few registered photos (2; at least 3)');
+    assert.equal(await page.getAttribute(row, 'class'), 'skipped');
+    assert.match(await page.textContent('#job-summary'),
+                 /^succeeded.*Dense matching skipped: too few registered photos \(2; at least 3\)$/);
+    // The other stages succeeded as usual.
+    assert.equal((await cellTexts(page, '#stage-rows tr td:nth-child(2)'))
+                     .filter((status) => status === 'success').length, 7);
+    assert.deepEqual(errors, []);
+    await page.close();
+  }
+});

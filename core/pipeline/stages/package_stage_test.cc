@@ -53,5 +53,46 @@ TEST(PackageStage, WritesReportManifestAndArchive) {
   fs::remove_all(root);
 }
 
+// A stage before packaging with per-map figures in its summary, as the dense stage has.
+class MapsStage : public Stage {
+ public:
+  std::string_view Name() const override { return "maps"; }
+  std::string_view Title() const override { return "Maps"; }
+  StageResult Run(StageContext&) const override {
+    return StageResult::Success(
+        {{"maps", {{{"image", "a.jpg"}, {"seconds", 4.2}, {"depth_fraction", 0.71}}}}});
+  }
+};
+
+TEST(PackageStage, ReportHasEachStagesTimeOwnPeakProcessPeakAndSummary) {
+  const fs::path root =
+      fs::temp_directory_path() / ("reconduit_package_stage_report_" + std::to_string(getpid()));
+  fs::remove_all(root);
+  Workspace workspace;
+  workspace.work_dir = root / "work";
+  workspace.output_dir = root / "output";
+
+  std::vector<std::unique_ptr<Stage>> stages;
+  stages.push_back(std::make_unique<MapsStage>());
+  stages.push_back(std::make_unique<PackageStage>());
+  const PipelineResult result = RunPipeline(stages, workspace, PipelineOptions(), CancelToken());
+  ASSERT_EQ(result.status, StageStatus::kSuccess) << result.message;
+
+  const auto json = nlohmann::json::parse(*ReadFile(workspace.output_dir / "report.json"));
+  ASSERT_EQ(json["stages"].size(), 1u);
+  const nlohmann::json& stage = json["stages"][0];
+  const StageRecord& record = result.stages[0];
+  EXPECT_EQ(stage["name"], "maps");
+  EXPECT_EQ(stage["seconds"].get<double>(), record.seconds);
+  EXPECT_GT(stage["peak_memory_bytes"].get<std::int64_t>(), 0);
+  EXPECT_EQ(stage["peak_memory_bytes"], record.peak_memory_bytes);
+  EXPECT_GT(stage["stage_peak_memory_bytes"].get<std::int64_t>(), 0);
+  EXPECT_EQ(stage["stage_peak_memory_bytes"], record.stage_peak_memory_bytes);
+  EXPECT_EQ(stage["stage_peak_memory_own"], record.stage_peak_memory_own);
+  EXPECT_EQ(stage["summary"]["maps"][0]["image"], "a.jpg");
+  EXPECT_EQ(stage["summary"]["maps"][0]["seconds"], 4.2);
+  fs::remove_all(root);
+}
+
 }  // namespace
 }  // namespace reconduit
