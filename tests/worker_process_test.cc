@@ -1,6 +1,6 @@
 // Starts real reconduit-worker processes on a temporary data folder whose jobs the test inserted
 // through the JobStore, and checks what they do to the jobs: normal processing, kill -9 in the
-// middle of a stage (the next worker resumes), kill -9 at ten moments of a job's life (every job
+// middle of a stage (the next worker resumes), kill -9 at eleven moments of a job's life (every job
 // finishes once, with a valid result.zip), two workers sharing a queue (each job once), SIGTERM
 // during a job (exit 0 quickly, job back in the queue, finished by the next worker), and the
 // configuration file.
@@ -150,7 +150,9 @@ class WorkerProcessTest : public ::testing::Test {
   WorkerProcessTest() : layout_(dir_.path()), store_(OpenOrDie(layout_.DatabasePath().string())) {}
 
   std::string CreateJob(const PhotoSet& set,
-                        nlohmann::json options = {{"num_threads", 1}, {"max_features", 2048}}) {
+                        nlohmann::json options = {{"num_threads", 1},
+                                                  {"max_features", 2048},
+                                                  {"dense_max_image_side", 256}}) {
     NewJob job;
     job.id = NewJobId();
     job.options = std::move(options);
@@ -224,6 +226,17 @@ class WorkerProcessTest : public ::testing::Test {
                  job.stage_progress.contains(stage);
         },
         timeout);
+  }
+
+  // Depth maps the dense stage of job `id` has finished on disk.
+  int KeptDepthMaps(const std::string& id) {
+    std::error_code ec;
+    int n = 0;
+    for (fs::directory_iterator it(layout_.WorkDir(id) / "dense" / "maps", ec), end; !ec && it != end;
+         it.increment(ec)) {
+      n += it->path().extension() == ".rcdm";
+    }
+    return n;
   }
 
   std::string Describe(const std::string& id) {
@@ -360,7 +373,7 @@ TEST_F(WorkerProcessTest, SigtermMidJobReleasesItAndTheNextWorkerFinishesIt) {
 
 // The stages a run can resume, in pipeline order (export and packaging always run again).
 const std::vector<std::string> kResumableStages = {"ingest", "features", "pairs", "matching",
-                                                   "sparse"};
+                                                   "sparse",  "dense"};
 
 // One moment of a job's life at which its worker dies by SIGKILL.
 struct KillMoment {
@@ -377,16 +390,17 @@ struct KillMoment {
   bool result_zip = false;
 };
 
-// Kills a worker at ten moments spread over a job's life, one job per moment (a job may run
+// Kills a worker at eleven moments spread over a job's life, one job per moment (a job may run
 // max_attempts = 3 times, so each job dies once): right after the claim; between a stage's
 // marker on disk and the store hearing of it (ingest, features, matching); in the middle of
-// features, matching and sparse; when packaging starts; after result.zip is renamed into place
+// features, matching and sparse; in dense once a depth map is finished (the next worker takes
+// the finished maps over); when packaging starts; after result.zip is renamed into place
 // but before the store knows; just before FinishSucceeded. Each time a new worker takes the job
 // over once the dead worker's lease runs out, and the job must end succeeded exactly once:
 // claimed by the rescuer, attempts 1, the finished stages skipped and the others run once,
 // every stage recorded, one result.zip whose manifest matches its entries and the output
 // folder, and no job lost or duplicated across the queue.
-TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
+TEST_F(WorkerProcessTest, KillDashNineAtElevenMomentsEveryJobFinishesOnce) {
   const std::vector<KillMoment> moments = {
       {"right after the claim", "claimed", "", 0ms, 0, false},
       {"ingest's marker written, store not told", "stage-done:ingest", "", 0ms, 1, false},
@@ -395,9 +409,10 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
       {"in the middle of matching", "", "matching", 250ms, 3, false},
       {"matching's marker written, store not told", "stage-done:matching", "", 0ms, 4, false},
       {"in the middle of sparse", "", "sparse", 100ms, 4, false},
-      {"packaging started", "stage-started:package", "", 0ms, 5, false},
-      {"result.zip renamed into place, store not told", "stage-done:package", "", 0ms, 5, true},
-      {"result.zip checked, FinishSucceeded not called", "before-finish", "", 0ms, 5, true},
+      {"in the middle of dense, a depth map finished", "", "dense", 0ms, 5, false},
+      {"packaging started", "stage-started:package", "", 0ms, 6, false},
+      {"result.zip renamed into place, store not told", "stage-done:package", "", 0ms, 6, true},
+      {"result.zip checked, FinishSucceeded not called", "before-finish", "", 0ms, 6, true},
   };
   // All jobs queued from the start: each doomed worker and each rescuer takes the oldest queued
   // job, and nothing may take a job that is not its turn.
@@ -416,6 +431,9 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
       WorkerProcess doomed(layout_.root(), doomed_id, {"--poll", "0.1", "--lease", "1"}, env);
       if (moment.crash_at.empty()) {
         ASSERT_TRUE(WaitForStage(id, moment.stage, 40s)) << Describe(id) << doomed.Log();
+        if (moment.stage == "dense") {
+          ASSERT_TRUE(WaitUntil([&] { return KeptDepthMaps(id) >= 1; }, 40s)) << doomed.Log();
+        }
         std::this_thread::sleep_for(moment.after);
         doomed.Signal(SIGKILL);
       }
@@ -437,6 +455,7 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
       EXPECT_EQ(fs::exists(marker), s < moment.finished_on_disk) << marker;
     }
     EXPECT_EQ(fs::exists(layout_.ResultZip(id)), moment.result_zip);
+    const int kept_maps = moment.stage == "dense" ? KeptDepthMaps(id) : 0;
     if (moment.stage == "sparse") {
       // What a kill inside an atomic write of a deliverable leaves (core/io writes
       // "<file>.tmp-<pid>-<random>", then renames it): it must not reach result.zip.
@@ -491,6 +510,21 @@ TEST_F(WorkerProcessTest, KillDashNineAtTenMomentsEveryJobFinishesOnce) {
           << all;
     }
     EXPECT_EQ(Count(rescue, "export|stage 'export' started"), 1) << all;
+    if (moment.stage == "dense") {
+      // The rescuer took over the depth maps the dead worker finished and computed the rest.
+      const nlohmann::json report =
+          nlohmann::json::parse(*ReadFile(layout_.OutputDir(id) / "report.json"));
+      int resumed = 0, maps = 0;
+      for (const nlohmann::json& stage : report.at("stages")) {
+        if (stage.at("name") != "dense") continue;
+        for (const nlohmann::json& map : stage.at("summary").at("maps")) {
+          ++maps;
+          resumed += map.value("resumed", false);
+        }
+      }
+      EXPECT_EQ(resumed, kept_maps);
+      EXPECT_EQ(maps, kSmall.count);
+    }
     EXPECT_EQ(Count(rescue, "package|stage 'package' started"), 1) << all;
 
     // One result.zip, the one the store describes, whose manifest matches its entries and the

@@ -407,16 +407,26 @@ async function renderFiles(job) {
     return;
   }
   if (job.id !== selectedId) return;  // Another job was opened meanwhile.
-  const pictures = listing.files.filter((f) => f.type === 'image/png');
+  // The report's pictures (the deliverables' own images, e.g. 16-bit depth maps, are files).
+  const pictures = listing.files.filter((f) => f.name.startsWith('report/') &&
+                                               /^image\/(png|jpeg)$/.test(f.type));
   const captions = {
     'report/similarity.png': 'Which photos resemble which (brighter: more alike).',
     'report/match_graph.png': 'Which pairs matched (green: epipolar geometry; orange: planar or rotation only).',
+  };
+  const caption = (name) => {
+    if (captions[name]) return captions[name];
+    const dense = /^report\/dense\/(.*)_(depth|quality)\.(jpg|png)$/.exec(name);
+    if (!dense) return name;
+    return dense[2] === 'depth' ? `${dense[1]}: depth (red near, blue far, black: none)`
+                                : `${dense[1]}: how many photos agree (red: this one only; ` +
+                                      'orange to green: 2 and more)';
   };
   $('pictures').replaceChildren(
       el('h3', {}, 'Pictures'),
       el('div', {class: 'pictures'}, pictures.map((f) => el('figure', {},
           el('a', {href: f.url, target: '_blank'}, el('img', {src: f.url, alt: f.name, loading: 'lazy'})),
-          el('figcaption', {class: 'hint'}, captions[f.name] || f.name)))));
+          el('figcaption', {class: 'hint'}, caption(f.name))))));
   $('files-list').replaceChildren(
       el('h3', {}, 'Files'),
       el('ul', {}, listing.files.map((f) => el('li', {},

@@ -572,7 +572,15 @@ class JobRun {
       text += " (the stage's own " + FormatMiB(record.stage_peak_memory_bytes) + ")";
     }
     LogLevel level = LogLevel::kInfo;
-    if (success && !record.summary.empty()) text += ": " + record.summary.dump();
+    if (success && !record.summary.empty()) {
+      // Lists (the dense stage's per-map figures) are in the job's stage records and the
+      // report; the event line says how long they are.
+      nlohmann::json brief = record.summary;
+      for (auto& [key, value] : brief.items()) {
+        if (value.is_array()) value = std::to_string(value.size()) + " entries";
+      }
+      text += ": " + brief.dump();
+    }
     if (!success) {
       level = record.status == StageStatus::kCanceled ? LogLevel::kInfo : LogLevel::kError;
       text += ": " + record.message;
