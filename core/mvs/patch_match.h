@@ -59,15 +59,17 @@ struct PatchMatchOptions {
   // y: radius 4, step 2 compares 25 samples over a 9 x 9 window. [1, 15], [1, radius]
   int window_radius = 4;
   int window_step = 2;
-  // Propagation + refinement sweeps (each a red and a black half-sweep). [1, 50]
+  // Propagation + refinement sweeps (each a red and a black half-sweep) at the coarsest level
+  // (see pyramid_levels). [1, 50]
   int num_iterations = 5;
   // Coarse-to-fine: the number of half-resolution levels below the working resolution (0: a
-  // single level). The coarsest level runs `num_iterations` sweeps from random planes; every
-  // finer level starts from the planes of the level below and runs `upsampled_iterations`
-  // sweeps whose refinement perturbations are those of iteration `upsampled_first_iteration`
-  // on (they halve each iteration: 2 starts at +-1 % of the depth). 2 levels and 2 sweeps: see
-  // the table above (a third level gains nothing at 1536 x 1024; one sweep loses 0.3 % of the
-  // pixels and 0.7 % of the accuracy). [0, 4], [1, 50], [0, 50]
+  // single level; fewer when the photos would get smaller than two windows across). The coarsest
+  // level runs `num_iterations` sweeps from random planes; every finer level starts from the planes
+  // of the level below and runs `upsampled_iterations` sweeps whose refinement perturbations are
+  // those of iteration `upsampled_first_iteration` on (they halve each iteration: 2 starts at +-1 %
+  // of the depth). 2 levels and 2 sweeps: see the table above (a third level gains nothing at 1536
+  // x 1024; one sweep loses 0.3 % of the pixels and 0.7 % of the accuracy). [0, 4], [1, 50], [0,
+  // 50]
   int pyramid_levels = 2;
   int upsampled_iterations = 2;
   int upsampled_first_iteration = 2;

@@ -318,6 +318,14 @@ TEST(PatchMatch, RejectsBadInput) {
   options.upsampled_iterations = 0;
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("upsampled_iterations"), std::string::npos);
+  // Photos too small to halve twice (the coarsest level would be narrower than two windows)
+  // get fewer levels instead of failing.
+  const std::vector<TestView> tiny = {Render(scene, {0, 0, 5}, {0, 0, 0}, 24, 20),
+                                      Render(scene, {0.5, 0, 5}, {0.5, 0, 0}, 24, 20)};
+  options = PatchMatchOptions();
+  options.pyramid_levels = 4;
+  const DepthMap tiny_map = ComputeDepthMap(InputFor(tiny, 1.0, 10.0), options);
+  EXPECT_EQ(tiny_map.depth.size(), cv::Size(24, 20));
   CancelToken cancel;
   cancel.RequestCancel();
   views[1].view.camera.k1 = 0.0;
