@@ -21,16 +21,19 @@
 // only (no fresh random depth or normal). Speed (core/mvs/patch_match_benchmark.cc: 1536 x
 // 1024 reference, 6 sources, floor and box, CPU seconds on this 2-core AMD EPYC, 2 threads):
 //
-//   single level, 5 iterations (before)                 94.7 s  filled 99.96 %  0.1 %: 97.8 %
-//   2 levels, 5 + 2 + 2 iterations, all candidates        ~37 s (from 768 x 512: 2.0x faster)
-//   2 levels, polishing finer levels (the default)       20.3 s  filled 99.77 %  0.1 %: 98.5 %
-//   3 levels                                              20.0 s  filled 99.77 %  0.1 %: 98.6 %
-//   2 levels, polishing, 1 iteration per finer level     14.0 s  filled 99.50 %  0.1 %: 97.8 %
-//   2 levels, polishing, 3 iterations per finer level    28.9 s  filled 99.80 %  0.1 %: 98.5 %
+//   single level, 5 sweeps (before)                      94.7 s  filled 99.96 %  0.1 %: 97.8 %
+//   2 levels, 5 + 2 + 2 sweeps, all candidates (*)        38.5 s  filled 99.92 %  0.1 %: 98.3 %
+//   2 levels, finer levels polishing (*)                  20.3 s  filled 99.77 %  0.1 %: 98.5 %
+//   3 levels, polishing (*)                               20.0 s  filled 99.77 %  0.1 %: 98.6 %
+//   2 levels, polishing, 1 sweep per finer level (*)      14.0 s  filled 99.50 %  0.1 %: 97.8 %
+//   2 levels, polishing, 3 sweeps per finer level (*)     28.9 s  filled 99.80 %  0.1 %: 98.5 %
+//   the default: 2 levels, polishing, pair gathers   17.7-18.8 s  (the same map as row 3)
 //
 // ("filled": true-surface pixels with a depth; "0.1 %": share of those within 0.1 % of the
-// true depth.) Starting from good planes also makes the maps more accurate than the single
-// level's 5 iterations, and the window cost's AVX2 kernel (below) gains another ~1.3x.
+// true depth; (*): with the first AVX2 kernel, one 32-bit gather per bilinear corner; see
+// SourceCost in the .cc.) Starting from good planes also makes the maps more accurate than
+// the single level's 5 sweeps. Wall time could not be measured fairly: the machine was shared
+// (load average 8-10 on 2 cores: 54 s wall for 18 s of CPU).
 //
 // What stays empty (depth 0): pixels whose window has almost no texture (its grey levels'
 // standard deviation below `min_texture_stddev`: the sky, a plain wall, a black background),
@@ -63,13 +66,14 @@ struct PatchMatchOptions {
   // (see pyramid_levels). [1, 50]
   int num_iterations = 5;
   // Coarse-to-fine: the number of half-resolution levels below the working resolution (0: a
-  // single level; fewer when the photos would get smaller than two windows across). The coarsest
-  // level runs `num_iterations` sweeps from random planes; every finer level starts from the planes
-  // of the level below and runs `upsampled_iterations` sweeps whose refinement perturbations are
-  // those of iteration `upsampled_first_iteration` on (they halve each iteration: 2 starts at +-1 %
-  // of the depth). 2 levels and 2 sweeps: see the table above (a third level gains nothing at 1536
-  // x 1024; one sweep loses 0.3 % of the pixels and 0.7 % of the accuracy). [0, 4], [1, 50], [0,
-  // 50]
+  // single level; fewer when the photos would get smaller than two windows across). The
+  // coarsest level runs `num_iterations` sweeps from random planes; every finer level starts
+  // from the planes of the level below and runs `upsampled_iterations` sweeps whose refinement
+  // perturbations are those of iteration `upsampled_first_iteration` on (they halve each
+  // iteration: 2 starts at +-1 % of the depth). 2 levels and 2 sweeps: see the table above (a
+  // third level gains little at 1536 x 1024; one sweep loses 0.3 % of the pixels and 0.7 % of
+  // the accuracy). First iteration 0, 1, 3, 4 at 768 x 512: 87.6, 87.9, 88.4, 88.4 % of the
+  // pixels within 0.1 %, against 88.4 % for 2. [0, 4], [1, 50], [0, 50]
   int pyramid_levels = 2;
   int upsampled_iterations = 2;
   int upsampled_first_iteration = 2;
