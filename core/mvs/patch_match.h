@@ -32,8 +32,10 @@
 // ("filled": true-surface pixels with a depth; "0.1 %": share of those within 0.1 % of the
 // true depth; (*): with the first AVX2 kernel, one 32-bit gather per bilinear corner; see
 // SourceCost in the .cc.) Starting from good planes also makes the maps more accurate than
-// the single level's 5 sweeps. Wall time could not be measured fairly: the machine was shared
-// (load average 8-10 on 2 cores: 54 s wall for 18 s of CPU).
+// the single level's 5 sweeps, also on noisy photos (4 grey levels of Gaussian noise, 768 x
+// 512: within 0.2 % 89.7 % -> 92.9 % of the filled pixels, filled 99.92 % -> 99.61 %). Wall time
+// could not be measured fairly: the machine was shared (load average 8-10 on 2 cores: 54 s wall for
+// 18 s of CPU).
 //
 // What stays empty (depth 0): pixels whose window has almost no texture (its grey levels'
 // standard deviation below `min_texture_stddev`: the sky, a plain wall, a black background),

@@ -10,11 +10,12 @@
 //
 // Prints wall and CPU time of ComputeDepthMap alone, completeness (share of true-surface
 // pixels at least a window from the border that get a depth), accuracy (share of the filled
-// depths within 0.1 % and 0.2 % of the true depth) and the median relative error.
+// depths within 0.1 % and 0.2 % of the true depth) and the median relative error. --noise adds
+// Gaussian noise of that many grey levels to every photo.
 //
 // Usage: mvs_patch_match_benchmark [--width W] [--height H] [--sources N] [--threads T]
 //                                  [--iterations I] [--levels L] [--up_iterations U]
-//                                  [--up_first F] [--simd 0|1] [--repeat R]
+//                                  [--up_first F] [--simd 0|1] [--noise SIGMA] [--repeat R]
 #include "core/mvs/patch_match.h"
 #include "core/scene/render.h"
 #include "core/scene/textured_scene.h"
@@ -39,6 +40,7 @@ struct BenchmarkArgs {
   int height = 1024;
   int num_sources = 6;
   int repeat = 1;
+  int noise = 0;  // Standard deviation of Gaussian noise added to every photo, grey levels.
   PatchMatchOptions options;
 };
 
@@ -79,7 +81,11 @@ struct View {
   cv::Mat true_depth;
 };
 
-View Render(const TexturedScene& scene, const Eigen::Vector3d& center, int width, int height) {
+View Render(const TexturedScene& scene,
+            const Eigen::Vector3d& center,
+            const BenchmarkArgs& args,
+            std::uint64_t seed) {
+  const int width = args.width, height = args.height;
   View v;
   // Focal 0.85 x the width: fountain-P11's at half resolution (1536 px wide) is about 1380 px.
   v.view.camera = Camera::FromFocal(width, height, 0.85 * width);
@@ -91,6 +97,12 @@ View Render(const TexturedScene& scene, const Eigen::Vector3d& center, int width
   const RenderedView rendered = RenderScene(scene, v.view.camera, v.view.cam_from_world, options);
   rendered.image.convertTo(v.view.gray, CV_32FC1);
   cv::GaussianBlur(v.view.gray, v.view.gray, cv::Size(0, 0), 0.7);
+  if (args.noise > 0) {
+    cv::Mat noise(v.view.gray.size(), CV_32FC1);
+    cv::RNG rng(seed);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, static_cast<double>(args.noise));
+    v.view.gray += noise;
+  }
   v.true_depth = rendered.depth;
   return v;
 }
@@ -102,13 +114,13 @@ std::vector<View> RenderViews(const BenchmarkArgs& args) {
   const Eigen::Vector3d up = Eigen::Vector3d(0, 1, 1).normalized();
   const std::vector<Eigen::Vector2d> offsets = {{0.7, 0},   {-0.7, 0},    {0, 0.6},   {0, -0.6},
                                                 {1.3, 0.3}, {-1.2, -0.4}, {0.5, 0.5}, {-0.5, 0.5}};
-  std::vector<View> views = {Render(scene, reference, args.width, args.height)};
+  std::vector<View> views = {Render(scene, reference, args, 1)};
   for (int s = 0; s < args.num_sources; ++s) {
     const Eigen::Vector2d& o = offsets[s % offsets.size()];
     const double scale = 1.0 + static_cast<double>(s / offsets.size()) * 0.5;
     const Eigen::Vector3d center =
         reference + scale * (o.x() * Eigen::Vector3d::UnitX() + o.y() * up);
-    views.push_back(Render(scene, center, args.width, args.height));
+    views.push_back(Render(scene, center, args, static_cast<std::uint64_t>(s) + 2));
   }
   return views;
 }
@@ -178,6 +190,8 @@ BenchmarkArgs ParseArgs(int argc, char** argv) {
       args.options.upsampled_first_iteration = value;
     else if (flag == "--simd")
       args.options.use_simd = value != 0;
+    else if (flag == "--noise")
+      args.noise = value;
     else if (flag == "--repeat")
       args.repeat = value;
     else {
