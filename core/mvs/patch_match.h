@@ -21,21 +21,22 @@
 // only (no fresh random depth or normal). Speed (core/mvs/patch_match_benchmark.cc: 1536 x
 // 1024 reference, 6 sources, floor and box, CPU seconds on this 2-core AMD EPYC, 2 threads):
 //
-//   single level, 5 sweeps (before)                      94.7 s  filled 99.96 %  0.1 %: 97.8 %
+//   single level, 5 sweeps (before)                 78.8-94.7 s  filled 99.96 %  0.1 %: 97.8 %
 //   2 levels, 5 + 2 + 2 sweeps, all candidates (*)        38.5 s  filled 99.92 %  0.1 %: 98.3 %
 //   2 levels, finer levels polishing (*)                  20.3 s  filled 99.77 %  0.1 %: 98.5 %
 //   3 levels, polishing (*)                               20.0 s  filled 99.77 %  0.1 %: 98.6 %
 //   2 levels, polishing, 1 sweep per finer level (*)      14.0 s  filled 99.50 %  0.1 %: 97.8 %
 //   2 levels, polishing, 3 sweeps per finer level (*)     28.9 s  filled 99.80 %  0.1 %: 98.5 %
-//   the default: 2 levels, polishing, pair gathers   17.7-18.8 s  (the same map as row 3)
+//   the default: 2 levels, polishing, pair gathers   14.1-18.8 s  (the same map as row 3)
 //
 // ("filled": true-surface pixels with a depth; "0.1 %": share of those within 0.1 % of the
-// true depth; (*): with the first AVX2 kernel, one 32-bit gather per bilinear corner; see
-// SourceCost in the .cc.) Starting from good planes also makes the maps more accurate than
-// the single level's 5 sweeps, also on noisy photos (4 grey levels of Gaussian noise, 768 x
-// 512: within 0.2 % 89.7 % -> 92.9 % of the filled pixels, filled 99.92 % -> 99.61 %). Wall time
-// could not be measured fairly: the machine was shared (load average 8-10 on 2 cores: 54 s wall for
-// 18 s of CPU).
+// true depth; CPU times of repeated runs vary by up to 30 % with the shared machine's load; (*):
+// with the first AVX2 kernel, one 32-bit gather per bilinear corner; see SourceCost in the .cc.)
+// Starting from good planes also makes the maps more accurate than the single level's 5 sweeps,
+// also on noisy photos (4 grey levels of Gaussian noise, 768 x 512: within 0.2 % 89.7 % -> 92.9 %
+// of the filled pixels, filled 99.92 % -> 99.61 %). Wall time on a shared machine: 11.3-12.2 s on 2
+// threads for 14.1-14.4 s of CPU at a load average of 2.3 from others (4 sources: 5.3 s wall, 9.8 s
+// CPU); 21-80 s under heavier load.
 //
 // What stays empty (depth 0): pixels whose window has almost no texture (its grey levels'
 // standard deviation below `min_texture_stddev`: the sky, a plain wall, a black background),
