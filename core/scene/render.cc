@@ -58,6 +58,7 @@ std::vector<PreparedQuad> PrepareQuads(const TexturedScene& scene, const Eigen::
 // bounds the height fields' (slower) search.
 std::optional<Hit> CastRay(const std::vector<PreparedQuad>& quads,
                            const std::vector<TexturedHeightField>& height_fields,
+                           const std::vector<HeightFieldBounds>& bounds,
                            const Eigen::Vector3d& center,
                            const Eigen::Vector3d& direction) {
   std::optional<Hit> best;
@@ -76,8 +77,10 @@ std::optional<Hit> CastRay(const std::vector<PreparedQuad>& quads,
     best = Hit{quad.texture, t, u, v};
     best_t = t;
   }
-  for (const TexturedHeightField& field : height_fields) {
-    const std::optional<double> t = IntersectHeightField(field, center, direction, best_t);
+  for (std::size_t f = 0; f < height_fields.size(); ++f) {
+    const TexturedHeightField& field = height_fields[f];
+    const std::optional<double> t =
+        IntersectHeightField(field, bounds[f], center, direction, best_t);
     if (!t) continue;
     const Eigen::Vector3d point = center + *t * direction;
     best = Hit{&field.texture, *t, point.x() - field.min_xy.x(), point.y() - field.min_xy.y()};
@@ -111,6 +114,10 @@ RenderedView RenderScene(const TexturedScene& scene,
   const Eigen::Matrix3d world_from_cam_rotation =
       cam_from_world.rotation.toRotationMatrix().transpose();
   const std::vector<PreparedQuad> quads = PrepareQuads(scene, center);
+  std::vector<HeightFieldBounds> bounds;
+  for (const TexturedHeightField& field : scene.height_fields) {
+    bounds.push_back(field.ComputeBounds());
+  }
 
   // The world direction of the ray through `pixel`, scaled so that its camera z is 1 (the ray
   // parameter at a hit is then the depth), or nullopt beyond the distortion's fold.
@@ -138,17 +145,18 @@ RenderedView RenderScene(const TexturedScene& scene,
           for (const double dy : offsets) {
             for (const double dx : offsets) {
               const auto direction = ray_direction(col + dx, row + dy);
-              const auto hit = direction ? CastRay(quads, scene.height_fields, center, *direction)
-                                         : std::nullopt;
+              const auto hit = direction
+                                   ? CastRay(quads, scene.height_fields, bounds, center, *direction)
+                                   : std::nullopt;
               sum += hit ? EvaluateTexture(*hit->texture, hit->u, hit->v) : scene.background_color;
             }
           }
           const Eigen::Vector3d bgr = sum / (n * n);
 
           const auto center_direction = ray_direction(col, row);
-          const auto center_hit =
-              center_direction ? CastRay(quads, scene.height_fields, center, *center_direction)
-                               : std::nullopt;
+          const auto center_hit = center_direction ? CastRay(quads, scene.height_fields, bounds,
+                                                             center, *center_direction)
+                                                   : std::nullopt;
           depth_row[col] = center_hit ? static_cast<float>(center_hit->t) : 0.0f;
 
           if (options.grayscale) {

@@ -307,14 +307,15 @@ TEST(RenderScene, TerrainPixelsLieOnTheSurfaceWithItsTexture) {
   EXPECT_NEAR(view.depth.at<float>(60, 80), (cam_from_world * target).z(), 2e-6 * 10.0);
 
   // Every pixel centre's hit is on the surface (to float precision of the depth), shows the
-  // texture there, and IntersectRay agrees.
+  // texture there, and the SceneRayCaster agrees.
   const Eigen::Vector3d center = cam_from_world.CenterInWorld();
+  const SceneRayCaster caster(scene);
   int num_surface = 0;
   for (int row = 0; row < camera.height; row += 4) {
     for (int col = 0; col < camera.width; col += 4) {
       const Eigen::Vector3d direction =
           cam_from_world.rotation.inverse() * *camera.CamFromImg(Eigen::Vector2d(col, row));
-      const auto hit = IntersectRay(scene, center, direction);
+      const auto hit = caster.Intersect(center, direction);
       const float depth = view.depth.at<float>(row, col);
       if (!hit) {
         EXPECT_EQ(depth, 0.0f);

@@ -80,12 +80,16 @@ double TexturedHeightField::Evaluate(double x,
   if (hessian != nullptr) hessian->setZero();
   for (const Hill& hill : hills) {
     const Eigen::Vector2d d(x - hill.center.x(), y - hill.center.y());
-    const double inv_var = 1.0 / (hill.radius * hill.radius);
-    const double e = hill.height * std::exp(-0.5 * d.squaredNorm() * inv_var);
-    z += e;
-    if (gradient != nullptr) *gradient -= e * inv_var * d;
+    const double inv_r2 = 1.0 / (hill.radius * hill.radius);
+    const double w = 1.0 - d.squaredNorm() * inv_r2;  // 1 - s, s = r^2 / radius^2.
+    if (w <= 0.0) continue;
+    z += hill.height * w * w * w;
+    // f = h w^3, grad w = -2 d / R^2: grad f = -6 h w^2 d / R^2, and
+    // Hessian f = -6 h w / R^2 (w I - 4 d d^T / R^2).
+    if (gradient != nullptr) *gradient -= 6.0 * hill.height * w * w * inv_r2 * d;
     if (hessian != nullptr) {
-      *hessian += e * inv_var * (inv_var * d * d.transpose() - Eigen::Matrix2d::Identity());
+      *hessian -= 6.0 * hill.height * w * inv_r2 *
+                  (w * Eigen::Matrix2d::Identity() - 4.0 * inv_r2 * d * d.transpose());
     }
   }
   return z;
@@ -99,22 +103,32 @@ Eigen::Vector3d TexturedHeightField::Normal(double x, double y) const {
   return Eigen::Vector3d(-g.x(), -g.y(), 1.0).normalized();
 }
 
-double TexturedHeightField::MaxSlope() const {
-  double slope = 0.0;
-  for (const Hill& hill : hills) slope += std::abs(hill.height) / (hill.radius * std::sqrt(M_E));
-  return slope;
-}
-
-double TexturedHeightField::MinHeight() const {
-  double z = base_z;
-  for (const Hill& hill : hills) z += std::min(hill.height, 0.0);
-  return z;
-}
-
-double TexturedHeightField::MaxHeight() const {
-  double z = base_z;
-  for (const Hill& hill : hills) z += std::max(hill.height, 0.0);
-  return z;
+HeightFieldBounds TexturedHeightField::ComputeBounds() const {
+  // Between grid points (at most half a diagonal away) the height changes by at most the
+  // slope bound times that distance, and the slope by at most the curvature bound times it.
+  double slope_bound = 0.0, curvature_bound = 0.0;
+  for (const Hill& hill : hills) {
+    slope_bound += 1.7174 * std::abs(hill.height) / hill.radius;
+    curvature_bound += 6.0 * std::abs(hill.height) / (hill.radius * hill.radius);
+  }
+  constexpr int kGrid = 400;
+  const Eigen::Vector2d step = (max_xy - min_xy) / kGrid;
+  const double half_diagonal = 0.5 * step.norm();
+  HeightFieldBounds bounds{std::numeric_limits<double>::infinity(),
+                           -std::numeric_limits<double>::infinity(), 0.0};
+  for (int i = 0; i <= kGrid; ++i) {
+    for (int j = 0; j <= kGrid; ++j) {
+      Eigen::Vector2d g;
+      const double z = Evaluate(min_xy.x() + i * step.x(), min_xy.y() + j * step.y(), &g);
+      bounds.min_height = std::min(bounds.min_height, z);
+      bounds.max_height = std::max(bounds.max_height, z);
+      bounds.max_slope = std::max(bounds.max_slope, g.norm());
+    }
+  }
+  bounds.min_height -= slope_bound * half_diagonal;
+  bounds.max_height += slope_bound * half_diagonal;
+  bounds.max_slope = std::min(bounds.max_slope + curvature_bound * half_diagonal, slope_bound);
+  return bounds;
 }
 
 bool TexturedScene::Check(std::string* error) const {
@@ -147,9 +161,20 @@ bool TexturedScene::Check(std::string* error) const {
 std::optional<RayHit> IntersectRay(const TexturedScene& scene,
                                    const Eigen::Vector3d& origin,
                                    const Eigen::Vector3d& direction) {
+  return SceneRayCaster(scene).Intersect(origin, direction);
+}
+
+SceneRayCaster::SceneRayCaster(const TexturedScene& scene) : scene_(scene) {
+  for (const TexturedHeightField& field : scene.height_fields) {
+    bounds_.push_back(field.ComputeBounds());
+  }
+}
+
+std::optional<RayHit> SceneRayCaster::Intersect(const Eigen::Vector3d& origin,
+                                                const Eigen::Vector3d& direction) const {
   std::optional<RayHit> best;
-  for (int q = 0; q < static_cast<int>(scene.quads.size()); ++q) {
-    const TexturedQuad& quad = scene.quads[q];
+  for (int q = 0; q < static_cast<int>(scene_.quads.size()); ++q) {
+    const TexturedQuad& quad = scene_.quads[q];
     const Eigen::Vector3d normal = quad.edge_u.cross(quad.edge_v);
     const double denominator = normal.dot(direction);
     if (denominator == 0.0) continue;
@@ -166,10 +191,11 @@ std::optional<RayHit> IntersectRay(const TexturedScene& scene,
     best =
         RayHit{q, -1, t, {a * quad.edge_u.norm(), b * quad.edge_v.norm()}, origin + t * direction};
   }
-  for (int f = 0; f < static_cast<int>(scene.height_fields.size()); ++f) {
-    const TexturedHeightField& field = scene.height_fields[f];
+  for (int f = 0; f < static_cast<int>(scene_.height_fields.size()); ++f) {
+    const TexturedHeightField& field = scene_.height_fields[f];
     const double t_max = best ? best->distance : std::numeric_limits<double>::infinity();
-    const std::optional<double> t = IntersectHeightField(field, origin, direction, t_max);
+    const std::optional<double> t =
+        IntersectHeightField(field, bounds_[f], origin, direction, t_max);
     if (!t) continue;
     const Eigen::Vector3d point = origin + *t * direction;
     best = RayHit{-1, f, *t, point.head<2>() - field.min_xy, point};
@@ -178,16 +204,17 @@ std::optional<RayHit> IntersectRay(const TexturedScene& scene,
 }
 
 std::optional<double> IntersectHeightField(const TexturedHeightField& field,
+                                           const HeightFieldBounds& bounds,
                                            const Eigen::Vector3d& origin,
                                            const Eigen::Vector3d& direction,
                                            double t_max) {
   double t = 0.0, t_end = t_max;
-  const Eigen::Vector3d lo(field.min_xy.x(), field.min_xy.y(), field.MinHeight());
-  const Eigen::Vector3d hi(field.max_xy.x(), field.max_xy.y(), field.MaxHeight());
+  const Eigen::Vector3d lo(field.min_xy.x(), field.min_xy.y(), bounds.min_height);
+  const Eigen::Vector3d hi(field.max_xy.x(), field.max_xy.y(), bounds.max_height);
   if (!ClipToBox(origin, direction, lo, hi, &t, &t_end)) return std::nullopt;
   // g(t) = ray height above the surface changes by at most `speed` per unit of t.
   const double speed =
-      std::abs(direction.z()) + field.MaxSlope() * direction.head<2>().norm() + 1e-300;
+      std::abs(direction.z()) + bounds.max_slope * direction.head<2>().norm() + 1e-300;
   Eigen::Vector2d gradient;
   double side = 0.0;    // The sign of g on the ray's side of the surface.
   double t_before = t;  // The last t on that side: the first root is beyond it.
@@ -347,7 +374,7 @@ TexturedScene MakeTerrainScene(std::uint64_t seed) {
     Hill hill;
     hill.center = Eigen::Vector2d(-9.0 + 6.0 * (i % 4) + 3.0 * (unit(rng) - 0.5),
                                   -8.0 + 8.0 * (i / 4) + 4.0 * (unit(rng) - 0.5));
-    hill.radius = 2.0 + 2.0 * unit(rng);
+    hill.radius = 5.0 + 4.0 * unit(rng);
     hill.height = (i % 4 == 3 ? -1.0 : 1.0) * (0.4 + 1.2 * unit(rng));
     field.hills.push_back(hill);
   }

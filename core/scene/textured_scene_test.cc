@@ -127,7 +127,7 @@ TexturedHeightField ThreeHills() {
   field.min_xy = {-5.0, -5.0};
   field.max_xy = {5.0, 5.0};
   field.base_z = 0.5;
-  field.hills = {{{-1.5, 0.5}, 1.2, 1.5}, {{2.0, -1.0}, 0.8, 1.0}, {{0.5, 2.5}, -0.6, 1.2}};
+  field.hills = {{{-1.5, 0.5}, 1.2, 3.5}, {{2.0, -1.0}, 0.8, 2.5}, {{0.5, 2.5}, -0.6, 3.0}};
   field.texture.seed = 4;
   return field;
 }
@@ -151,19 +151,38 @@ TEST(TexturedHeightField, DerivativesMatchFiniteDifferences) {
     EXPECT_LT((hessian.col(1) - (gy - g) / h).norm(), 1e-4);
     EXPECT_LT((field.Normal(x, y) - Eigen::Vector3d(-g.x(), -g.y(), 1.0).normalized()).norm(),
               1e-15);
-    // The bounds hold everywhere.
-    EXPECT_LE(g.norm(), field.MaxSlope());
-    EXPECT_GE(z, field.MinHeight());
-    EXPECT_LE(z, field.MaxHeight());
   }
-  EXPECT_NEAR(field.MinHeight(), -0.1, 1e-12);
-  EXPECT_NEAR(field.MaxHeight(), 2.5, 1e-12);
-  // A single hill's bound is its steepest slope, reached at one radius from its top.
+  // Outside a hill's support it contributes nothing.
+  EXPECT_EQ(field.Height(-4.9, -4.9), 0.5);
+  // A single hill's steepest slope, at radius / sqrt(5) from its top.
   TexturedHeightField one;
   one.hills = {{{0.0, 0.0}, 2.0, 1.5}};
   Eigen::Vector2d g;
-  one.Evaluate(1.5, 0.0, &g);
-  EXPECT_NEAR(g.norm(), one.MaxSlope(), 1e-12);
+  one.Evaluate(1.5 / std::sqrt(5.0), 0.0, &g);
+  EXPECT_NEAR(g.norm(), 1.7173 * 2.0 / 1.5, 1e-4);
+}
+
+TEST(TexturedHeightField, BoundsHoldEverywhereAndAreTight) {
+  const TexturedHeightField field = ThreeHills();
+  const HeightFieldBounds bounds = field.ComputeBounds();
+  double min_z = 1e9, max_z = -1e9, max_slope = 0.0;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> coordinate(-5.0, 5.0);
+  for (int i = 0; i < 200000; ++i) {
+    Eigen::Vector2d g;
+    const double z = field.Evaluate(coordinate(rng), coordinate(rng), &g);
+    min_z = std::min(min_z, z);
+    max_z = std::max(max_z, z);
+    max_slope = std::max(max_slope, g.norm());
+  }
+  EXPECT_LE(bounds.min_height, min_z);
+  EXPECT_GE(bounds.max_height, max_z);
+  EXPECT_GE(bounds.max_slope, max_slope);
+  EXPECT_GT(bounds.min_height, min_z - 0.05);
+  EXPECT_LT(bounds.max_height, max_z + 0.05);
+  EXPECT_LT(bounds.max_slope, max_slope + 0.05);
+  // The top: the first hill, 1.2 m over the base (the hollow's support just reaches it).
+  EXPECT_NEAR(max_z, 1.7, 0.01);
 }
 
 TEST(TexturedHeightField, CheckRejectsBadFields) {
@@ -208,8 +227,9 @@ bool NoCrossingBefore(const TexturedHeightField& field,
 
 TEST(IntersectHeightField, HitsTheFirstCrossingOnTheSurface) {
   const TexturedHeightField field = ThreeHills();
+  const HeightFieldBounds bounds = field.ComputeBounds();
   // Straight down: the hit is the height below.
-  auto t = IntersectHeightField(field, {-1.5, 0.5, 10.0}, {0.0, 0.0, -2.0}, 100.0);
+  auto t = IntersectHeightField(field, bounds, {-1.5, 0.5, 10.0}, {0.0, 0.0, -2.0}, 100.0);
   ASSERT_TRUE(t.has_value());
   EXPECT_NEAR(*t, (10.0 - field.Height(-1.5, 0.5)) / 2.0, 1e-9);
   // Random rays from above, some oblique enough to hit a hill's far side or to pass over the
@@ -220,7 +240,7 @@ TEST(IntersectHeightField, HitsTheFirstCrossingOnTheSurface) {
   for (int i = 0; i < 300; ++i) {
     const Eigen::Vector3d origin(4.0 * unit(rng), 4.0 * unit(rng), 3.0 + unit(rng));
     const Eigen::Vector3d direction(unit(rng), unit(rng), -0.15 - 0.5 * std::abs(unit(rng)));
-    t = IntersectHeightField(field, origin, direction, 1e9);
+    t = IntersectHeightField(field, bounds, origin, direction, 1e9);
     if (!t) {
       // A miss leaves the rectangle above the surface.
       EXPECT_TRUE(NoCrossingBefore(field, origin, direction, 50.0)) << "ray " << i;
@@ -234,14 +254,14 @@ TEST(IntersectHeightField, HitsTheFirstCrossingOnTheSurface) {
   }
   EXPECT_GT(num_hits, 100);
   // From below (two-sided), and t_max cuts the search short.
-  t = IntersectHeightField(field, {2.0, -1.0, -3.0}, {0.0, 0.0, 1.0}, 100.0);
+  t = IntersectHeightField(field, bounds, {2.0, -1.0, -3.0}, {0.0, 0.0, 1.0}, 100.0);
   ASSERT_TRUE(t.has_value());
   EXPECT_NEAR(*t, 3.0 + field.Height(2.0, -1.0), 1e-9);
-  EXPECT_FALSE(IntersectHeightField(field, {2.0, -1.0, -3.0}, {0.0, 0.0, 1.0}, 3.0));
+  EXPECT_FALSE(IntersectHeightField(field, bounds, {2.0, -1.0, -3.0}, {0.0, 0.0, 1.0}, 3.0));
   // Pointing up, above everything, or outside the rectangle: no hit.
-  EXPECT_FALSE(IntersectHeightField(field, {0.0, 0.0, 5.0}, {0.1, 0.0, 1.0}, 100.0));
-  EXPECT_FALSE(IntersectHeightField(field, {-9.0, 0.0, 2.6}, {1.0, 0.0, 0.0}, 100.0));
-  EXPECT_FALSE(IntersectHeightField(field, {6.0, 0.0, 5.0}, {0.0, 0.0, -1.0}, 100.0));
+  EXPECT_FALSE(IntersectHeightField(field, bounds, {0.0, 0.0, 5.0}, {0.1, 0.0, 1.0}, 100.0));
+  EXPECT_FALSE(IntersectHeightField(field, bounds, {-9.0, 0.0, 2.6}, {1.0, 0.0, 0.0}, 100.0));
+  EXPECT_FALSE(IntersectHeightField(field, bounds, {6.0, 0.0, 5.0}, {0.0, 0.0, -1.0}, 100.0));
 }
 
 TEST(IntersectRay, FindsHeightFieldsAndTheNearerQuad) {
