@@ -71,7 +71,7 @@ struct SyntheticCase {
 struct RunOptions {
   int width = 320;
   int height = 240;
-  double focal = 500.0;
+  double focal = 800.0;
   bool noise = true;
   bool long_variant = false;  // More photos.
   int max_sources = 4;
@@ -134,11 +134,11 @@ SyntheticCase BoxRoom(const RunOptions& options) {
   scene.quads.push_back(Quad({4, -3, 0}, {0, 6, 0}, up, 13));          // Right wall.
   scene.quads.push_back(Quad({-4, -3, 0}, {0, 6, 0}, up, 14));         // Left wall.
   scene.quads.push_back(Quad({-4, -3, 0}, {8, 0, 0}, up, 15));         // Front wall.
-  AddBox({2.6, 1.9}, {0.8, 0.7, 0.8}, 25.0, 20, &scene);
+  AddBox({2.2, 1.7}, {0.5, 0.5, 0.5}, 25.0, 20, &scene);
   c.plain_quads.push_back(static_cast<int>(scene.quads.size()));
-  scene.quads.push_back(PlainQuad({0.7, 2.99, 1.0}, {1.2, 0, 0}, {0, 0, 1.0}));
+  scene.quads.push_back(PlainQuad({1.9, 2.99, 0.9}, {0.7, 0, 0}, {0, 0, 0.6}));
   const int n = options.long_variant ? 8 : 6;
-  c.poses = CamerasOnLine(n, {3.0, 3.0, 1.0}, {-1.0, -1.5, 1.5}, {1.0, -1.5, 1.5});
+  c.poses = CamerasOnLine(n, {3.0, 3.0, 0.8}, {-1.2, -2.5, 1.5}, {1.2, -2.5, 1.5});
   c.sample_spacing = 0.025;
   return c;
 }
@@ -156,9 +156,9 @@ SyntheticCase BoxOnPlane(const RunOptions& options) {
   TexturedQuad top = scene.quads.back();
   scene.quads.back() = PlainQuad(top.origin + Eigen::Vector3d(0, 0, 0.001), top.edge_u, top.edge_v);
   c.plain_quads.push_back(static_cast<int>(scene.quads.size()) - 1);
-  AddBox({1.2, -1.0}, {0.5, 0.5, 0.5}, -10.0, 50, &scene);
-  const int n = options.long_variant ? 12 : 8;
-  c.poses = CamerasOnArc(n, {0.0, 0.0, 0.35}, 3.5, 2.5, 360.0, 10.0);
+  AddBox({0.9, 0.7}, {0.4, 0.4, 0.4}, -10.0, 50, &scene);
+  const int n = options.long_variant ? 16 : 12;
+  c.poses = CamerasOnArc(n, {0.0, 0.0, 0.35}, 5.6, 4.0, 360.0, 10.0);
   c.sample_spacing = 0.02;
   return c;
 }
@@ -171,18 +171,18 @@ SyntheticCase Terrain(const RunOptions& options) {
   c.name = "terrain";
   c.scene = MakeTerrainScene(3);
   const TexturedHeightField& field = c.scene.height_fields[0];
-  const Eigen::Vector2d pond(-1.0, 0.5);
+  const Eigen::Vector2d pond(-0.5, 0.3);
   double top = -std::numeric_limits<double>::infinity();
-  for (double x = -1.0; x <= 1.0; x += 0.01) {
-    for (double y = -1.0; y <= 1.0; y += 0.01) {
+  for (double x = -0.6; x <= 0.6; x += 0.01) {
+    for (double y = -0.6; y <= 0.6; y += 0.01) {
       top = std::max(top, field.Height(pond.x() + x, pond.y() + y));
     }
   }
   c.plain_quads.push_back(static_cast<int>(c.scene.quads.size()));
   c.scene.quads.push_back(
-      PlainQuad({pond.x() - 1.0, pond.y() - 1.0, top + 0.01}, {2, 0, 0}, {0, 2, 0}));
-  c.poses = options.long_variant ? TerrainCameraGrid(4, 4, 2.5, 12.0)
-                                 : TerrainCameraGrid(3, 3, 2.0, 12.0);
+      PlainQuad({pond.x() - 0.6, pond.y() - 0.6, top + 0.01}, {1.2, 0, 0}, {0, 1.2, 0}));
+  c.poses = options.long_variant ? TerrainCameraGrid(4, 4, 1.2, 12.0)
+                                 : TerrainCameraGrid(3, 3, 1.5, 12.0);
   c.sample_spacing = 0.04;
   return c;
 }
@@ -621,7 +621,7 @@ RunOptions LongOptions(bool noise) {
   RunOptions options;
   options.width = 480;
   options.height = 360;
-  options.focal = 560.0;
+  options.focal = 1200.0;
   options.noise = noise;
   options.long_variant = true;
   options.max_sources = 6;
