@@ -19,12 +19,13 @@
 //
 // Density: a fused point stands for about one pixel's footprint (depth / focal), and a random
 // surface sample is within the tolerance of one only where footprints are not much larger than
-// the tolerance, i.e. where focal >~ 360 px x depth / scene depth. The cameras have 400 px focal
-// lengths for that reason, and scenes keep their depths within ~1.5x of the scene depth.
+// the tolerance (0.002 x scene depth): at 500 px focal (footprint = tolerance at the scene
+// depth) the cloud's density alone capped completeness near 70 %. The cameras have 800 px focal
+// lengths (footprint 0.6x the tolerance; a 23 deg wide view at 320 px) for that reason.
 //
-// The default run (label integration) is 320 x 240, 5-8 photos per scene, with noise; the
-// `long` variant (tests/dense_synthetic_long_test) runs 480 x 360, more photos, with and without
-// noise.
+// The default run (label integration) is 320 x 240, 6-12 photos per scene, with noise (about
+// 50 s of CPU); the `long` variant (tests/dense_synthetic_long_test) runs 480 x 360 at 1200 px
+// focal (the same views), more photos, with and without noise.
 #include "core/mvs/fusion.h"
 #include "core/mvs/mvs_view.h"
 #include "core/mvs/patch_match.h"
@@ -121,9 +122,9 @@ void AddBox(const Eigen::Vector2d& center,
   scene->quads.push_back(Quad(corner + ez, ex, ey, seed + 5));
 }
 
-// Inside an 8 x 6 x 3 m room (no ceiling): cameras on a 2 m line at eye height look towards a
-// corner: back wall, side wall, floor and a box; a plain 1.2 x 1 m panel 1 cm in front of the
-// back wall. Depths 3.5-6 m.
+// Inside an 8 x 6 x 3 m room (no ceiling): 6 (long: 8) cameras on a 2.4 m line at eye height
+// look towards a corner: back wall, side wall, floor and a box; a plain 0.7 x 0.6 m panel 1 cm
+// in front of the back wall. Depths 5-7 m.
 SyntheticCase BoxRoom(const RunOptions& options) {
   SyntheticCase c;
   c.name = "box room";
@@ -143,8 +144,8 @@ SyntheticCase BoxRoom(const RunOptions& options) {
   return c;
 }
 
-// Two boxes on a 5 x 5 m textured plane (beyond it the plain background), seen by a ring of
-// cameras 3.5 m out and 2.5 m up; the larger box's top is plain. Depths 2.5-6 m.
+// Two boxes on a 5 x 5 m textured plane (beyond it the plain background), seen by a ring of 12
+// (long: 16) cameras 5.6 m out and 4 m up; the larger box's top is plain. Depths 4.5-8.5 m.
 SyntheticCase BoxOnPlane(const RunOptions& options) {
   SyntheticCase c;
   c.name = "box on a plane";
@@ -163,9 +164,9 @@ SyntheticCase BoxOnPlane(const RunOptions& options) {
   return c;
 }
 
-// The terrain of hills seen from 12 m up by a 3 x 3 (long: 4 x 4) grid of nadir cameras 3 m
-// (long: 2.5 m) apart, with a plain 2 x 2 m "pond" lid resting on it (1 cm above the highest
-// ground beneath). Depths 10-14 m.
+// The terrain of hills seen from 12 m up by a 3 x 3 (long: 4 x 4) grid of nadir cameras 1.5 m
+// (long: 1.2 m) apart, with a plain 1.2 x 1.2 m "pond" lid resting on it (1 cm above the
+// highest ground beneath). Depths 10-13 m.
 SyntheticCase Terrain(const RunOptions& options) {
   SyntheticCase c;
   c.name = "terrain";
