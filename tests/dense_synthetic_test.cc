@@ -470,8 +470,9 @@ struct Figures {
   // The same for the surface seen by >= 3 photos (PatchMatch's top_k = 2 needs two sources).
   double completeness3 = 0.0;
   double visible_area3 = 0.0;
-  // Of the plain panels seen by >= 2 photos, where the matching window (its radius + 1 px)
-  // around the point's projection lies inside the panel in every photo that sees it.
+  // Of the plain panels seen by >= 2 photos, where the matching window around the point's
+  // projection lies inside the panel in every photo that sees it, with 3 px to spare (the
+  // lens blur, sigma 0.7 px, carries the panel's edge 2 px inwards; 1 px of interpolation).
   double plain_area = 0.0;
   double plain_covered = 0.0;  // Share of that area with a fused point within the tolerance.
 };
@@ -513,7 +514,7 @@ Figures Measure(const SyntheticCase& c, const DenseCloud& cloud, const SceneRayC
         window_on_panel =
             window_on_panel &&
             WindowInsideQuad(c.camera, pose, c.scene.quads[c.plain_quads[sample.plain]], *pixel,
-                             kBorder + 1.0);
+                             kBorder + 3.0);
       }
     }
     if (seen_by < 2 || !window_on_panel) continue;
