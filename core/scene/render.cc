@@ -23,10 +23,11 @@ struct PreparedQuad {
   Eigen::Vector3d to_v;
   double length_u;
   double length_v;
+  const ProceduralTexture* texture;
 };
 
 struct Hit {
-  int quad;
+  const ProceduralTexture* texture;
   double t;
   double u;
   double v;
@@ -47,13 +48,18 @@ std::vector<PreparedQuad> PrepareQuads(const TexturedScene& scene, const Eigen::
     p.length_v = quad.edge_v.norm();
     p.to_u = dual_u * (p.length_u / quad.edge_u.dot(dual_u));
     p.to_v = dual_v * (p.length_v / quad.edge_v.dot(dual_v));
+    p.texture = &quad.texture;
     prepared.push_back(p);
   }
   return prepared;
 }
 
-// The nearest hit of the ray center + t direction with t > 0.
+// The nearest hit of the ray center + t direction with t > 0, quads first: their distance
+// bounds the height fields' (slower) search.
 std::optional<Hit> CastRay(const std::vector<PreparedQuad>& quads,
+                           const std::vector<TexturedHeightField>& height_fields,
+                           const std::vector<HeightFieldBounds>& bounds,
+                           const Eigen::Vector3d& center,
                            const Eigen::Vector3d& direction) {
   std::optional<Hit> best;
   double best_t = std::numeric_limits<double>::infinity();
@@ -68,8 +74,17 @@ std::optional<Hit> CastRay(const std::vector<PreparedQuad>& quads,
     if (u < 0.0 || u > quad.length_u) continue;
     const double v = w.dot(quad.to_v);
     if (v < 0.0 || v > quad.length_v) continue;
-    best = Hit{q, t, u, v};
+    best = Hit{quad.texture, t, u, v};
     best_t = t;
+  }
+  for (std::size_t f = 0; f < height_fields.size(); ++f) {
+    const TexturedHeightField& field = height_fields[f];
+    const std::optional<double> t =
+        IntersectHeightField(field, bounds[f], center, direction, best_t);
+    if (!t) continue;
+    const Eigen::Vector3d point = center + *t * direction;
+    best = Hit{&field.texture, *t, point.x() - field.min_xy.x(), point.y() - field.min_xy.y()};
+    best_t = *t;
   }
   return best;
 }
@@ -99,6 +114,10 @@ RenderedView RenderScene(const TexturedScene& scene,
   const Eigen::Matrix3d world_from_cam_rotation =
       cam_from_world.rotation.toRotationMatrix().transpose();
   const std::vector<PreparedQuad> quads = PrepareQuads(scene, center);
+  std::vector<HeightFieldBounds> bounds;
+  for (const TexturedHeightField& field : scene.height_fields) {
+    bounds.push_back(field.ComputeBounds());
+  }
 
   // The world direction of the ray through `pixel`, scaled so that its camera z is 1 (the ray
   // parameter at a hit is then the depth), or nullopt beyond the distortion's fold.
@@ -126,16 +145,18 @@ RenderedView RenderScene(const TexturedScene& scene,
           for (const double dy : offsets) {
             for (const double dx : offsets) {
               const auto direction = ray_direction(col + dx, row + dy);
-              const auto hit = direction ? CastRay(quads, *direction) : std::nullopt;
-              sum += hit ? EvaluateTexture(scene.quads[hit->quad].texture, hit->u, hit->v)
-                         : scene.background_color;
+              const auto hit = direction
+                                   ? CastRay(quads, scene.height_fields, bounds, center, *direction)
+                                   : std::nullopt;
+              sum += hit ? EvaluateTexture(*hit->texture, hit->u, hit->v) : scene.background_color;
             }
           }
           const Eigen::Vector3d bgr = sum / (n * n);
 
           const auto center_direction = ray_direction(col, row);
-          const auto center_hit =
-              center_direction ? CastRay(quads, *center_direction) : std::nullopt;
+          const auto center_hit = center_direction ? CastRay(quads, scene.height_fields, bounds,
+                                                             center, *center_direction)
+                                                   : std::nullopt;
           depth_row[col] = center_hit ? static_cast<float>(center_hit->t) : 0.0f;
 
           if (options.grayscale) {

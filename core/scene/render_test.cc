@@ -292,5 +292,60 @@ TEST(MakeBoxRoomScene, RingViewsSeeTheRoomEverywhere) {
   }
 }
 
+TEST(RenderScene, TerrainPixelsLieOnTheSurfaceWithItsTexture) {
+  const TexturedScene scene = MakeTerrainScene(7);
+  const TexturedHeightField& field = scene.height_fields[0];
+  // Odd sizes put the principal point on a pixel centre, (80, 60): the camera looks at a known
+  // surface point obliquely, so that pixel's depth is that point's.
+  const Camera camera = Camera::FromFocal(161, 121, 150.0);
+  const Eigen::Vector3d target(1.0, -2.0, field.Height(1.0, -2.0));
+  const Rigid3d cam_from_world =
+      Rigid3d::LookAt(target + Eigen::Vector3d(-4.0, -6.0, 7.0), target, Eigen::Vector3d::UnitZ());
+  RenderOptions options;
+  options.samples_per_axis = 1;
+  const RenderedView view = RenderScene(scene, camera, cam_from_world, options);
+  EXPECT_NEAR(view.depth.at<float>(60, 80), (cam_from_world * target).z(), 2e-6 * 10.0);
+
+  // Every pixel centre's hit is on the surface (to float precision of the depth), shows the
+  // texture there, and the SceneRayCaster agrees.
+  const Eigen::Vector3d center = cam_from_world.CenterInWorld();
+  const SceneRayCaster caster(scene);
+  int num_surface = 0;
+  for (int row = 0; row < camera.height; row += 4) {
+    for (int col = 0; col < camera.width; col += 4) {
+      const Eigen::Vector3d direction =
+          cam_from_world.rotation.inverse() * *camera.CamFromImg(Eigen::Vector2d(col, row));
+      const auto hit = caster.Intersect(center, direction);
+      const float depth = view.depth.at<float>(row, col);
+      if (!hit) {
+        EXPECT_EQ(depth, 0.0f);
+        continue;
+      }
+      ++num_surface;
+      EXPECT_NEAR(depth, hit->distance, 1e-6 * hit->distance);
+      const Eigen::Vector3d point = center + static_cast<double>(depth) * direction;
+      EXPECT_NEAR(point.z(), field.Height(point.x(), point.y()), 2e-5);
+      const Eigen::Vector3d expected = EvaluateTexture(field.texture, hit->uv.x(), hit->uv.y());
+      EXPECT_LE((PixelColor(view.image, row, col) - expected).cwiseAbs().maxCoeff(), 0.5 + 1e-6);
+    }
+  }
+  EXPECT_GT(num_surface, 1000);
+}
+
+TEST(RenderScene, AerialGridSeesOnlyTerrain) {
+  const TexturedScene scene = MakeTerrainScene();
+  const Camera camera = Camera::FromFocal(160, 120, 150.0);
+  RenderOptions options;
+  options.samples_per_axis = 1;
+  for (const Rigid3d& cam_from_world : TerrainCameraGrid(3, 3, 3.0, 12.0)) {
+    const RenderedView view = RenderScene(scene, camera, cam_from_world, options);
+    double min_depth = 0.0, max_depth = 0.0;
+    cv::minMaxLoc(view.depth, &min_depth, &max_depth);
+    // 12 m up over relief of a few metres; the footprint (13 x 10 m) stays inside the terrain.
+    EXPECT_GT(min_depth, 8.0);
+    EXPECT_LT(max_depth, 14.0);
+  }
+}
+
 }  // namespace
 }  // namespace reconduit
