@@ -15,7 +15,7 @@ namespace {
 constexpr char kHeaderStart[] =
     "ply\n"
     "format binary_little_endian 1.0\n"
-    "comment Reconduit dense point cloud (visibility: cameras.json image indices)\n";
+    "comment Reconduit dense point cloud (visibility: positions in cameras.json images)\n";
 constexpr char kHeaderProperties[] =
     "property float x\n"
     "property float y\n"

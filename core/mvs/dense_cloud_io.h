@@ -7,9 +7,9 @@
 //   property float nx, ny, nz       unit normal, towards the cameras that see the point
 //   property uchar red, green, blue
 //   property list uchar int visibility
-//                                   the photos that see the point: their "index" in
-//                                   cameras.json (the photo's position in the upload),
-//                                   increasing
+//                                   the photos that see the point, increasing: as the
+//                                   dense stage writes it, positions in cameras.json's
+//                                   "images" list (from 0)
 // The mesh and texture stages read the visibility back (ReadDenseCloudPly); COLMAP keeps the
 // same lists in a separate fused.ply.vis, which is one more file to lose.
 #ifndef RECONDUIT_CORE_MVS_DENSE_CLOUD_IO_H_

@@ -133,16 +133,25 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   assert.match(await page.textContent('#job'), /Computing depth maps: 11 maps/);
   assert.match(page.url(), /#[0-9a-f]{32}$/);
 
-  // Every stage finished, the camera table shows a focal length, the pictures load.
+  // Every stage finished (dense included), the camera table shows a focal length, the pictures
+  // load.
   const statuses = await page.$$eval('#stage-rows tr td:nth-child(2)', (cells) =>
       cells.map((cell) => cell.textContent));
-  assert.deepEqual(statuses, Array(7).fill('success'));
+  assert.deepEqual(statuses, Array(8).fill('success'));
   // The focal length with its precision (one standard deviation).
   assert.match(await page.textContent('#cameras'), /\d+\.\d\d ± \d+\.\d\d/);
-  await page.waitForFunction(() => {
-    const pictures = [...document.querySelectorAll('#pictures img')];
-    return pictures.length === 2 && pictures.every((img) => img.complete && img.naturalWidth > 0);
-  });
+  // The two matching pictures and a depth and a quality preview per photo (lazy: scrolled to).
+  await page.waitForFunction(() => document.querySelectorAll('#pictures img').length === 2 + 2 * 11);
+  for (const name of ['report/similarity.png', 'report/dense/kermit010_depth.jpg',
+                      'report/dense/kermit010_quality.png']) {
+    const img = page.locator(`#pictures img[alt="${name}"]`);
+    await img.scrollIntoViewIfNeeded();
+    await page.waitForFunction((alt) => {
+      const i = document.querySelector(`#pictures img[alt="${alt}"]`);
+      return i.complete && i.naturalWidth > 0;
+    }, name);
+  }
+  assert.match(await page.textContent('#pictures'), /kermit010: depth \(red near, blue far/);
   const files = await page.$$eval('#files-list a', (links) => links.map((a) => a.textContent));
   for (const name of ['cameras.json', 'sparse.ply', 'report.json']) assert.ok(files.includes(name));
   const download = await page.getAttribute('#job-actions a', 'href');

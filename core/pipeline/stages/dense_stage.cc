@@ -288,6 +288,11 @@ Fused FuseMaps(const std::vector<ViewPlan>& plans, ViewCache* cache, StageContex
       throw std::runtime_error("cannot write " + png.string());
   }
   fused.cloud = std::move(result.cloud);
+  // Visibility as positions in cameras.json's image list: the registered photos in increasing
+  // id, as in the model (plans follow the model's order).
+  std::map<int, int> position;
+  for (const ViewPlan& plan : plans) position.emplace(plan.image_id, position.size());
+  for (int& id : fused.cloud.visibility) id = position.at(id);
   return fused;
 }
 
