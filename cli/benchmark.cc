@@ -277,6 +277,10 @@ void PrintDense(const PipelineResult& result) {
                 << seconds.back() << " s min / median / max)";
     }
     std::cout << ", fusion " << s.value("fusion_seconds", 0.0) << " s\n";
+    if (s.value("neighbor_agreement_median", nlohmann::json()).is_number()) {
+      std::cout << "  maps agreeing       " << 100.0 * s["neighbor_agreement_median"].get<double>()
+                << " % of depths within 1 % of the neighbours' (median over the maps)\n";
+    }
     const nlohmann::json& consistency = s.value("sparse_to_dense", nlohmann::json());
     if (consistency.is_object() && consistency["median_relative"].is_number()) {
       std::cout << "  sparse to dense     median "

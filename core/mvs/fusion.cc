@@ -5,11 +5,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <sstream>
 
 namespace reconduit {
 namespace {
+
+// The relative depth error within which FusionResult::neighbor_agreement counts two maps as
+// agreeing (issue 10's figure: "within 1 % relative depth"), whatever the fusion options.
+constexpr float kAgreementDepthError = 0.01f;
 
 // A view's pose and camera in float, with the back-projection precomputed.
 struct ViewGeometry {
@@ -70,19 +75,28 @@ class Fuser {
             g.world_from_cam * Eigen::Vector3f(n[0], n[1], n[2])};
   }
 
-  // The pixel of `other` confirming `sample` (seen at pixel (x, y) of `view`), if any.
-  bool Confirms(int view, int x, int y, const Sample& sample, int other, int* ox, int* oy) const {
+  // Where `point` lands in `other`: the pixel, the point's depth there and the map's depth at
+  // the pixel; false when it lands outside or on a pixel without depth.
+  bool Lookup(
+      const Eigen::Vector3f& point, int other, int* px, int* py, float* z, float* depth) const {
     const ViewGeometry& g = geometry_[other];
-    const Eigen::Vector3f in_other = g.rotation * sample.point + g.translation;
+    const Eigen::Vector3f in_other = g.rotation * point + g.translation;
     if (in_other.z() <= 0.0f) return false;
     const Eigen::Vector3f h = g.k * in_other;
-    const int px = static_cast<int>(std::lround(h.x() / h.z()));
-    const int py = static_cast<int>(std::lround(h.y() / h.z()));
-    if (px < 0 || py < 0 || px >= g.width || py >= g.height) return false;
-    const float depth = views_[other].map->depth.at<float>(py, px);
-    if (depth <= 0.0f) return false;
-    if (std::abs(in_other.z() - depth) >
-        static_cast<float>(options_.max_relative_depth_error) * depth)
+    *px = static_cast<int>(std::lround(h.x() / h.z()));
+    *py = static_cast<int>(std::lround(h.y() / h.z()));
+    if (*px < 0 || *py < 0 || *px >= g.width || *py >= g.height) return false;
+    *depth = views_[other].map->depth.at<float>(*py, *px);
+    *z = in_other.z();
+    return *depth > 0.0f;
+  }
+
+  // The pixel of `other` confirming `sample` (seen at pixel (x, y) of `view`), if any.
+  bool Confirms(int view, int x, int y, const Sample& sample, int other, int* ox, int* oy) const {
+    int px = 0, py = 0;
+    float z = 0.0f, depth = 0.0f;
+    if (!Lookup(sample.point, other, &px, &py, &z, &depth)) return false;
+    if (std::abs(z - depth) > static_cast<float>(options_.max_relative_depth_error) * depth)
       return false;
     const Sample theirs = SampleAt(other, px, py);
     if (sample.normal.dot(theirs.normal) < cos_max_normal_angle_) return false;
@@ -97,18 +111,29 @@ class Fuser {
     return true;
   }
 
-  cv::Mat Quality(int view) const {
+  // The quality map of `view`, and its agreement with its neighbours' maps (FusionResult).
+  cv::Mat Quality(int view, double* agreement) const {
     const cv::Mat& depth = views_[view].map->depth;
     cv::Mat quality(depth.size(), CV_8UC1, cv::Scalar(0));
+    std::int64_t overlapping = 0, agreeing = 0;
     for (int y = 0; y < depth.rows; ++y) {
       for (int x = 0; x < depth.cols; ++x) {
         if (depth.at<float>(y, x) <= 0.0f) continue;
         const Sample sample = SampleAt(view, x, y);
         int agree = 1, ox = 0, oy = 0;
-        for (int other : neighbors_[view]) agree += Confirms(view, x, y, sample, other, &ox, &oy);
+        for (int other : neighbors_[view]) {
+          agree += Confirms(view, x, y, sample, other, &ox, &oy);
+          float z = 0.0f, theirs = 0.0f;
+          if (Lookup(sample.point, other, &ox, &oy, &z, &theirs)) {
+            ++overlapping;
+            agreeing += std::abs(z - theirs) <= kAgreementDepthError * theirs;
+          }
+        }
         quality.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(std::min(agree, 255));
       }
     }
+    *agreement = overlapping > 0 ? static_cast<double>(agreeing) / overlapping
+                                 : std::numeric_limits<double>::quiet_NaN();
     return quality;
   }
 
@@ -219,11 +244,12 @@ FusionResult FuseDepthMaps(const std::vector<FusionView>& views,
   const Fuser fuser(views, options);
   FusionResult result;
   result.quality.resize(views.size());
+  result.neighbor_agreement.resize(views.size());
   ParallelFor(
       0, views.size(),
       [&](std::size_t v) {
         cancel.ThrowIfCanceled();
-        result.quality[v] = fuser.Quality(static_cast<int>(v));
+        result.quality[v] = fuser.Quality(static_cast<int>(v), &result.neighbor_agreement[v]);
       },
       options.num_threads);
   std::vector<cv::Mat> used;

@@ -80,6 +80,11 @@ struct FusionResult {
   // Per view, CV_8UC1: how many views agree with the pixel's depth, itself included (capped at
   // 255); 0 where the depth map is empty.
   std::vector<cv::Mat> quality;
+  // Per view: of its depths that land, projected into a neighbour, on a pixel with a depth, the
+  // share within 1 % of that depth (as seen from the neighbour). Counted over every pixel and
+  // neighbour; NaN where no depth lands on another map. How well the maps agree, before any
+  // normal or reprojection check.
+  std::vector<double> neighbor_agreement;
 };
 
 // Throws CheckError for invalid options or views (null maps, sizes that do not match their

@@ -82,6 +82,23 @@ TEST(Fusion, PointsOnTheSurfaceOncePerSurfaceSample) {
   // nobody else.
   EXPECT_EQ(result.quality[1].at<std::uint8_t>(30, 40), 3);
   EXPECT_EQ(result.quality[0].at<std::uint8_t>(30, 1), 1);
+  // Exact maps agree everywhere they overlap.
+  ASSERT_EQ(result.neighbor_agreement.size(), 3u);
+  for (double agreement : result.neighbor_agreement) EXPECT_DOUBLE_EQ(agreement, 1.0);
+}
+
+TEST(Fusion, NeighbourAgreementIsTheShareWithinOnePercent) {
+  // Two views over the same floor; a quarter of view 1's pixels 3 % too far (wrong), another
+  // quarter 0.5 % too far (within 1 %).
+  Views views = FloorViews({{0, 0, 5}, {0.2, 0, 5}});
+  views.maps[1].depth(cv::Rect(0, 0, 40, 30)) *= 1.03;
+  views.maps[1].depth(cv::Rect(40, 0, 40, 30)) *= 1.005;
+  const FusionResult result = FuseDepthMaps(views.fusion, FusionOptions());
+  EXPECT_NEAR(result.neighbor_agreement[1], 0.75, 0.03);
+  EXPECT_NEAR(result.neighbor_agreement[0], 0.75, 0.03);
+  // No overlap: NaN.
+  Views apart = FloorViews({{0, 0, 5}, {100, 0, 5}});
+  EXPECT_TRUE(std::isnan(FuseDepthMaps(apart.fusion, FusionOptions()).neighbor_agreement[0]));
 }
 
 TEST(Fusion, AWrongDepthIsNotConfirmedAndNotFused) {

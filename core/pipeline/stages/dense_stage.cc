@@ -246,6 +246,8 @@ nlohmann::json ComputeMaps(const std::vector<ViewPlan>& plans,
 struct Fused {
   DenseCloud cloud;
   std::map<int, double> fused_fraction;  // Per image id: share of pixels with quality >= min.
+  // Per image id: FusionResult::neighbor_agreement (NaN where nothing overlaps).
+  std::map<int, double> agreement;
 };
 
 Fused FuseMaps(const std::vector<ViewPlan>& plans, ViewCache* cache, StageContext& context) {
@@ -280,6 +282,7 @@ Fused FuseMaps(const std::vector<ViewPlan>& plans, ViewCache* cache, StageContex
   fs::create_directories(context.stage_dir / "quality");
   for (std::size_t k = 0; k < fused_plans.size(); ++k) {
     const cv::Mat& quality = result.quality[k];
+    fused.agreement[fused_plans[k]->image_id] = result.neighbor_agreement[k];
     fused.fused_fraction[fused_plans[k]->image_id] =
         static_cast<double>(cv::countNonZero(quality >= options.min_views)) / quality.total();
     const fs::path png =
@@ -364,14 +367,26 @@ StageResult DenseStage::Run(StageContext& context) const {
   context.progress.SetMessage("fusing the depth maps");
   const Timer fusion_timer;
   Fused fused = FuseMaps(plans, &cache, context);
-  for (nlohmann::json& map : maps)
-    map["fused_fraction"] = fused.fused_fraction[map["image_id"].get<int>()];
-  nlohmann::json summary = {{"maps", maps},
-                            {"depth_maps", maps.size()},
-                            {"points", fused.cloud.size()},
-                            {"depth_maps_seconds", maps_seconds},
-                            {"fusion_seconds", fusion_timer.ElapsedSeconds()},
-                            {"sparse_to_dense", SparseToDense(*model, fused.cloud)}};
+  std::vector<double> agreements;
+  for (nlohmann::json& map : maps) {
+    const int id = map["image_id"].get<int>();
+    map["fused_fraction"] = fused.fused_fraction[id];
+    const double agreement = fused.agreement.count(id) ? fused.agreement[id] : NAN;
+    map["neighbor_agreement"] =
+        std::isnan(agreement) ? nlohmann::json() : nlohmann::json(agreement);
+    if (!std::isnan(agreement)) agreements.push_back(agreement);
+  }
+  nlohmann::json summary = {
+      {"maps", maps},
+      {"depth_maps", maps.size()},
+      {"points", fused.cloud.size()},
+      {"depth_maps_seconds", maps_seconds},
+      {"fusion_seconds", fusion_timer.ElapsedSeconds()},
+      // Median over the maps of the share of their depths within 1 % of
+      // their neighbours' where they overlap (FusionResult).
+      {"neighbor_agreement_median",
+       agreements.empty() ? nlohmann::json() : nlohmann::json(Median(agreements))},
+      {"sparse_to_dense", SparseToDense(*model, fused.cloud)}};
   if (fused.cloud.size() == 0) {
     return Skipped("no surface was confirmed by " +
                        std::to_string(context.options.dense_min_views) +

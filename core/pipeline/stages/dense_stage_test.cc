@@ -142,6 +142,7 @@ TEST_F(DenseStageTest, FusesTheFloorAndExportsEveryPhotosMaps) {
     EXPECT_GT(map["depth_fraction"].get<double>(), 0.8) << map.dump();
     // The outer photos share less of the floor with the others.
     EXPECT_GT(map["fused_fraction"].get<double>(), 0.6) << map.dump();
+    EXPECT_GT(map["neighbor_agreement"].get<double>(), 0.8) << map.dump();
   }
 
   auto cloud = ReadDenseCloudPly(workspace_.StageDir("dense") / "dense.ply");
