@@ -992,6 +992,29 @@ Result<SweepResult> SqliteJobStore::SweepExpiredLeases() {
   });
 }
 
+// ApplyMigrations, retried while the database is busy for up to another busy timeout. It takes
+// the write lock (BEGIN IMMEDIATE) even when there is nothing to migrate; when many processes
+// open the file at once on a loaded machine, SQLite's own busy wait can run out (seen once in
+// JobStoreConcurrency.ProcessesClaimEachJobOnceWithoutBusyErrors under the sanitizers while
+// the machine ran a reconstruction).
+Status ApplyMigrationsWhenFree(SqliteConnection& db, const SqliteJobStoreOptions& options) {
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(options.busy_timeout_ms);
+  for (;;) {
+    Status status = Status::Ok();
+    try {
+      status = ApplyMigrations(db, EmbeddedMigrations());
+    } catch (const SqliteError& e) {
+      status = e.status();
+    }
+    if (status.code() != StatusCode::kResourceExhausted ||
+        std::chrono::steady_clock::now() > deadline) {
+      return status;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
 }  // namespace
 
 Result<std::unique_ptr<JobStore>> OpenSqliteJobStore(const std::string& path,
@@ -1008,7 +1031,7 @@ Result<std::unique_ptr<JobStore>> OpenSqliteJobStore(const std::string& path,
     ConfigureConnection(db, options);
     // Migrations first: a file that belongs to another program or a newer Reconduit is refused
     // before anything (even the journal mode) is changed in it.
-    if (Status s = ApplyMigrations(db, EmbeddedMigrations()); !s.ok()) {
+    if (Status s = ApplyMigrationsWhenFree(db, options); !s.ok()) {
       return Status(s.code(), context + ": " + s.message());
     }
     EnableWal(db, options);
