@@ -232,8 +232,8 @@ class WorkerProcessTest : public ::testing::Test {
   int KeptDepthMaps(const std::string& id) {
     std::error_code ec;
     int n = 0;
-    for (fs::directory_iterator it(layout_.WorkDir(id) / "dense" / "maps", ec), end; !ec && it != end;
-         it.increment(ec)) {
+    for (fs::directory_iterator it(layout_.WorkDir(id) / "dense" / "maps", ec), end;
+         !ec && it != end; it.increment(ec)) {
       n += it->path().extension() == ".rcdm";
     }
     return n;
@@ -372,8 +372,8 @@ TEST_F(WorkerProcessTest, SigtermMidJobReleasesItAndTheNextWorkerFinishesIt) {
 }
 
 // The stages a run can resume, in pipeline order (export and packaging always run again).
-const std::vector<std::string> kResumableStages = {"ingest", "features", "pairs", "matching",
-                                                   "sparse",  "dense"};
+const std::vector<std::string> kResumableStages = {"ingest",   "features", "pairs",
+                                                   "matching", "sparse",   "dense"};
 
 // One moment of a job's life at which its worker dies by SIGKILL.
 struct KillMoment {
