@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <type_traits>
@@ -994,12 +995,11 @@ Result<SweepResult> SqliteJobStore::SweepExpiredLeases() {
 
 // ApplyMigrations, retried while the database is busy for up to another busy timeout. It takes
 // the write lock (BEGIN IMMEDIATE) even when there is nothing to migrate; when many processes
-// open the file at once on a loaded machine, SQLite's own busy wait can run out (seen once in
+// open the file at once on a loaded machine, SQLite's own busy wait can run out (seen twice in
 // JobStoreConcurrency.ProcessesClaimEachJobOnceWithoutBusyErrors under the sanitizers while
 // the machine ran a reconstruction).
 Status ApplyMigrationsWhenFree(SqliteConnection& db, const SqliteJobStoreOptions& options) {
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::milliseconds(options.busy_timeout_ms);
+  std::optional<std::chrono::steady_clock::time_point> deadline;  // From the first busy failure.
   for (;;) {
     Status status = Status::Ok();
     try {
@@ -1007,10 +1007,10 @@ Status ApplyMigrationsWhenFree(SqliteConnection& db, const SqliteJobStoreOptions
     } catch (const SqliteError& e) {
       status = e.status();
     }
-    if (status.code() != StatusCode::kResourceExhausted ||
-        std::chrono::steady_clock::now() > deadline) {
-      return status;
-    }
+    if (status.code() != StatusCode::kResourceExhausted) return status;
+    const auto now = std::chrono::steady_clock::now();
+    if (!deadline) deadline = now + std::chrono::milliseconds(options.busy_timeout_ms);
+    if (now > *deadline) return status;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
 }
