@@ -96,6 +96,17 @@ class Fuser {
     int px = 0, py = 0;
     float z = 0.0f, depth = 0.0f;
     if (!Lookup(sample.point, other, &px, &py, &z, &depth)) return false;
+    if (!ConfirmsAt(view, x, y, sample, other, px, py, z, depth)) return false;
+    *ox = px;
+    *oy = py;
+    return true;
+  }
+
+  // Whether the depth `depth` of `other` at (px, py), where `sample` lands at depth z
+  // (Lookup), confirms it: depth, normal and reprojection checks.
+  bool ConfirmsAt(
+      int view, int x, int y, const Sample& sample, int other, int px, int py, float z, float depth)
+      const {
     if (std::abs(z - depth) > static_cast<float>(options_.max_relative_depth_error) * depth)
       return false;
     const Sample theirs = SampleAt(other, px, py);
@@ -105,10 +116,7 @@ class Fuser {
     if (back.z() <= 0.0f) return false;
     const float dx = back.x() / back.z() - static_cast<float>(x);
     const float dy = back.y() / back.z() - static_cast<float>(y);
-    if (dx * dx + dy * dy > max_reprojection_sq_) return false;
-    *ox = px;
-    *oy = py;
-    return true;
+    return dx * dx + dy * dy <= max_reprojection_sq_;
   }
 
   // The quality map of `view`, and its agreement with its neighbours' maps (FusionResult).
@@ -120,14 +128,14 @@ class Fuser {
       for (int x = 0; x < depth.cols; ++x) {
         if (depth.at<float>(y, x) <= 0.0f) continue;
         const Sample sample = SampleAt(view, x, y);
-        int agree = 1, ox = 0, oy = 0;
+        int agree = 1;
         for (int other : neighbors_[view]) {
-          agree += Confirms(view, x, y, sample, other, &ox, &oy);
+          int px = 0, py = 0;
           float z = 0.0f, theirs = 0.0f;
-          if (Lookup(sample.point, other, &ox, &oy, &z, &theirs)) {
-            ++overlapping;
-            agreeing += std::abs(z - theirs) <= kAgreementDepthError * theirs;
-          }
+          if (!Lookup(sample.point, other, &px, &py, &z, &theirs)) continue;
+          ++overlapping;
+          agreeing += std::abs(z - theirs) <= kAgreementDepthError * theirs;
+          agree += ConfirmsAt(view, x, y, sample, other, px, py, z, theirs);
         }
         quality.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(std::min(agree, 255));
       }
