@@ -288,7 +288,7 @@ void PrintDense(const PipelineResult& result) {
                 << consistency["sparse_points"] << " points)\n";
     }
     std::cout << "  dense / OpenMVS     " << record.seconds / kOpenMvsFountainDenseSeconds
-              << " (its " << kOpenMvsFountainDenseSeconds
+              << " (its " << static_cast<int>(kOpenMvsFountainDenseSeconds)
               << " s on fountain-P11 on this machine; meaningful for that set only)\n";
   }
 }
