@@ -293,6 +293,39 @@ void PrintDense(const PipelineResult& result) {
   }
 }
 
+// OpenMVS ReconstructMesh on fountain-P11 at its defaults on this machine (issue 11).
+constexpr double kOpenMvsFountainMeshSeconds = 117.0;
+
+// The mesh stage's figures: points kept, tetrahedra, lines of sight, faces, time per step.
+void PrintMesh(const PipelineResult& result) {
+  for (const StageRecord& record : result.stages) {
+    if (record.name != "mesh" || record.status != StageStatus::kSuccess) continue;
+    const nlohmann::json& s = record.summary;
+    if (s.contains("skipped_reason")) {
+      std::cout << "  mesh                skipped: " << s["skipped_reason"].get<std::string>()
+                << "\n";
+      return;
+    }
+    const nlohmann::json& surface = s.value("surface", nlohmann::json::object());
+    const nlohmann::json& t = surface.value("seconds", nlohmann::json::object());
+    std::cout << std::setprecision(4) << "  mesh                " << s.value("faces", 0)
+              << " faces, " << s.value("vertices", 0) << " vertices (from "
+              << surface.value("cut_faces", 0) << " on the cut, "
+              << surface.value("trimmed_faces", 0) << " trimmed)\n"
+              << "  mesh input          " << surface.value("kept_points", 0) << " of "
+              << surface.value("input_points", 0) << " points, " << surface.value("tetrahedra", 0)
+              << " tetrahedra, " << surface.value("lines_of_sight", 0) << " lines of sight\n"
+              << "  mesh steps          decimation " << t.value("decimation", 0.0)
+              << " s, delaunay " << t.value("delaunay", 0.0) << " s, visibility "
+              << t.value("visibility", 0.0) << " s, cut " << t.value("cut", 0.0)
+              << " s, extraction " << t.value("extraction", 0.0) << " s, cleaning + simplification "
+              << s.value("simplification", nlohmann::json::object()).value("seconds", 0.0) << " s\n"
+              << "  mesh / OpenMVS      " << record.seconds / kOpenMvsFountainMeshSeconds
+              << " (its ReconstructMesh " << static_cast<int>(kOpenMvsFountainMeshSeconds)
+              << " s on fountain-P11 on this machine; meaningful for that set only)\n";
+  }
+}
+
 // Time and peak memory of our stages (the package stage's time aside).
 struct OurRun {
   PipelineResult result;
@@ -329,6 +362,7 @@ OurRun RunOurs(const std::vector<std::unique_ptr<Stage>>& stages,
                ReadFocalStddev(workspace.StageDir("sparse") / "calibration.json"));
   }
   PrintDense(run.result);
+  PrintMesh(run.result);
   return run;
 }
 

@@ -19,6 +19,7 @@ runtime_packages=(
   libopencv-calib3d406
   libceres3 libexiv2-27 libzip4 libsqlite3-0 libopenblas0-pthread
   libboost-filesystem1.74.0 libboost-program-options1.74.0 libssl3
+  libgmp10 libmpfr6 libmaxflow0 libmeshoptimizer2d
 )
 
 # Toolchain, headers and test tools.
@@ -28,6 +29,7 @@ build_packages=(
   libboost1.74-dev libboost-filesystem1.74-dev libboost-program-options1.74-dev
   nlohmann-json3-dev libsqlite3-dev libzip-dev libtinygltf-dev libexiv2-dev libssl-dev
   libgtest-dev libgmock-dev
+  libcgal-dev libmaxflow-dev libmeshoptimizer-dev
   curl zip unzip
 )
 

@@ -114,6 +114,14 @@ std::vector<OptionSpec> MakeSpecs() {
       "dense_min_views", &PipelineOptions::dense_min_views, 2, 32,
       "A dense point is kept only where at least this many photos agree on its depth; more "
       "gives fewer, more reliable points."));
+  specs.push_back(BooleanOption(
+      "mesh", &PipelineOptions::mesh,
+      "Build a surface from the dense points (the mesh of model.glb). Off, the result ends with "
+      "the dense point cloud."));
+  specs.push_back(IntegerOption(
+      "mesh_max_faces", &PipelineOptions::mesh_max_faces, 1000, 20000000,
+      "The surface is simplified to at most this many triangles; flat parts lose theirs first. "
+      "500,000 keep a façade's carvings and load in a phone's browser."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;

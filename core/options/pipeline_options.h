@@ -50,6 +50,11 @@ struct PipelineOptions {
   int dense_max_image_side = 1600;
   // A dense point needs this many photos whose depths agree on it. [2, 32]
   int dense_min_views = 2;
+  // The surface (the mesh stage): Delaunay tetrahedra of the dense points labelled by their
+  // lines of sight, cleaned and simplified. Off: the job ends with the dense cloud. [bool]
+  bool mesh = true;
+  // The mesh is simplified to at most this many triangles. [1000, 20000000]
+  int mesh_max_faces = 500000;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 

@@ -5,6 +5,7 @@
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/matching_stage.h"
+#include "core/pipeline/stages/mesh_stage.h"
 #include "core/pipeline/stages/package_stage.h"
 #include "core/pipeline/stages/pairs_stage.h"
 #include "core/pipeline/stages/sparse_stage.h"
@@ -26,6 +27,7 @@ std::vector<std::pair<std::string, StageFactory>> WorkStages() {
       {"matching", [] { return std::make_unique<MatchingStage>(); }},
       {"sparse", [] { return std::make_unique<SparseStage>(); }},
       {"dense", [] { return std::make_unique<DenseStage>(); }},
+      {"mesh", [] { return std::make_unique<MeshStage>(); }},
   };
 }
 

@@ -16,14 +16,14 @@ std::vector<std::string> NamesOf(const std::vector<std::unique_ptr<Stage>>& stag
 
 TEST(DefaultStages, UntilNamesTheWorkStagesOnly) {
   EXPECT_THAT(PipelineStageNames(),
-              ElementsAre("ingest", "features", "pairs", "matching", "sparse", "dense"));
+              ElementsAre("ingest", "features", "pairs", "matching", "sparse", "dense", "mesh"));
 }
 
 TEST(DefaultStages, ExportAndPackagingAlwaysRunLast) {
   auto all = CreatePipelineStages();
   ASSERT_TRUE(all.ok()) << all.status();
   EXPECT_THAT(NamesOf(*all), ElementsAre("ingest", "features", "pairs", "matching", "sparse",
-                                         "dense", "export", "package"));
+                                         "dense", "mesh", "export", "package"));
   // `--until sparse` still delivers the sparse files.
   auto sparse = CreatePipelineStages("sparse");
   ASSERT_TRUE(sparse.ok()) << sparse.status();
@@ -37,8 +37,9 @@ TEST(DefaultStages, ExportAndPackagingAlwaysRunLast) {
 TEST(DefaultStages, UnknownStageListsTheKnownOnes) {
   auto stages = CreatePipelineStages("export");
   ASSERT_FALSE(stages.ok());
-  EXPECT_EQ(stages.status().message(),
-            "unknown stage 'export'; stages: ingest, features, pairs, matching, sparse, dense");
+  EXPECT_EQ(
+      stages.status().message(),
+      "unknown stage 'export'; stages: ingest, features, pairs, matching, sparse, dense, mesh");
 }
 
 }  // namespace

@@ -1,13 +1,17 @@
 #include "core/pipeline/stages/dense_stage.h"
 
 #include "core/io/file_util.h"
+#include "core/io/mesh_ply.h"
 #include "core/io/reconstruction_json.h"
 #include "core/mvs/dense_cloud_io.h"
 #include "core/mvs/depth_map_io.h"
 #include "core/pipeline/stages/ingest_stage.h"
+#include "core/pipeline/stages/mesh_stage.h"
 #include "core/scene/render.h"
 #include "core/scene/textured_scene.h"
 
+#include <Eigen/Geometry>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -239,6 +243,63 @@ TEST(PerPhotoFileNamesTest, StemsAndACountForSharedStems) {
   EXPECT_EQ(PerPhotoFileNames({"IMG_1.JPG", "dir/b c.png", "IMG_1.png", "x.y.jpg"}, {0, 1, 4, 5}),
             (std::vector<std::string>{"IMG_1_1", "b_c", "IMG_1_5", "x.y"}));
   EXPECT_EQ(PerPhotoFileNames({"folder/"}, {0}), (std::vector<std::string>{"photo"}));
+}
+
+}  // namespace
+}  // namespace reconduit
+
+// The mesh stage after the dense stage (core/pipeline/stages/mesh_stage.h), on the same floor:
+// its surface lies on the floor, faces the cameras, and stays where the photos saw it.
+namespace reconduit {
+namespace {
+
+StageResult RunMeshStage(const Workspace& workspace, const PipelineOptions& options) {
+  fs::remove_all(workspace.StageDir("mesh"));
+  fs::create_directories(workspace.StageDir("mesh"));
+  Progress progress;
+  CancelToken cancel;
+  std::vector<StageRecord> previous;
+  StageContext context{workspace, options, progress, cancel, previous, workspace.StageDir("mesh")};
+  return MeshStage().Run(context);
+}
+
+TEST_F(DenseStageTest, MeshStageMeshesTheFloor) {
+  // Before the dense stage ran: nothing to mesh, skipped with the reason.
+  StageResult mesh = RunMeshStage(workspace_, options_);
+  ASSERT_EQ(mesh.status, StageStatus::kSuccess) << mesh.message;
+  EXPECT_THAT(mesh.summary.value("skipped_reason", ""), ::testing::HasSubstr("no dense"));
+
+  ASSERT_EQ(RunDense().status, StageStatus::kSuccess);
+  options_.mesh_max_faces = 20000;
+  mesh = RunMeshStage(workspace_, options_);
+  ASSERT_EQ(mesh.status, StageStatus::kSuccess) << mesh.message;
+  ASSERT_FALSE(mesh.summary.contains("skipped_reason")) << mesh.summary.dump();
+  auto read = ReadMeshPly(workspace_.StageDir("mesh") / "mesh.ply");
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  const TriangleMesh& m = *read;
+  EXPECT_GT(m.NumFaces(), 5000u);
+  EXPECT_LE(m.NumFaces(), 20000u);
+  EXPECT_EQ(mesh.summary["faces"].get<std::size_t>(), m.NumFaces());
+  ASSERT_EQ(m.normals.size(), m.NumVertices());
+  ASSERT_EQ(m.colors.size(), m.NumVertices());
+  double area = 0, near = 0;
+  for (const Eigen::Vector3i& t : m.faces) {
+    const Eigen::Vector3f n =
+        (m.positions[t[1]] - m.positions[t[0]]).cross(m.positions[t[2]] - m.positions[t[0]]);
+    area += 0.5 * n.norm();
+    const float z = (m.positions[t[0]].z() + m.positions[t[1]].z() + m.positions[t[2]].z()) / 3;
+    // 0.2 % of the 5 m scene depth; facing up, towards the cameras.
+    if (std::abs(z) < 0.010f && n.z() > 0) near += 0.5 * n.norm();
+  }
+  EXPECT_GT(near / area, 0.9);
+  // Every camera sees about 6.7 x 5 m of the floor at 5 m: the surface is several m², and stays
+  // within the 12 x 12 m floor.
+  EXPECT_GT(area, 10.0);
+  for (const Eigen::Vector3f& p : m.positions) EXPECT_LT(p.head<2>().cwiseAbs().maxCoeff(), 6.1f);
+
+  options_.mesh = false;
+  mesh = RunMeshStage(workspace_, options_);
+  EXPECT_THAT(mesh.summary.value("skipped_reason", ""), ::testing::HasSubstr("turned off"));
 }
 
 }  // namespace
