@@ -203,48 +203,132 @@ std::vector<int> SelectBestViews(const FaceCandidates& candidates) {
   return labels;
 }
 
+namespace {
+
+// D(f, view) = 1 - quality / best quality of f, or -1 when view is no candidate of f.
+double DataCost(const FaceCandidates& candidates, int f, int view) {
+  float best = 0.0f, mine = -1.0f;
+  for (int i = candidates.offsets[f]; i < candidates.offsets[f + 1]; ++i) {
+    best = std::max(best, candidates.items[i].quality);
+    if (candidates.items[i].view == view) mine = candidates.items[i].quality;
+  }
+  return mine < 0.0f ? -1.0 : 1.0 - mine / best;
+}
+
+// One sweep of iterated conditional modes; returns the faces that changed.
+int IcmSweep(const FaceCandidates& candidates,
+             const FaceAdjacency& adjacency,
+             double smoothness_weight,
+             std::vector<int>& label) {
+  int changes = 0;
+  for (int f = 0; f < static_cast<int>(label.size()); ++f) {
+    if (label[f] < 0 || candidates.NumCandidates(f) < 2) continue;
+    float best_quality = 0.0f;
+    for (int i = candidates.offsets[f]; i < candidates.offsets[f + 1]; ++i) {
+      best_quality = std::max(best_quality, candidates.items[i].quality);
+    }
+    int best_label = label[f];
+    double best_cost = std::numeric_limits<double>::infinity(), current_cost = best_cost;
+    for (int i = candidates.offsets[f]; i < candidates.offsets[f + 1]; ++i) {
+      const FaceCandidate& candidate = candidates.items[i];
+      double cost = 1.0 - candidate.quality / best_quality;
+      for (int n = adjacency.offsets[f]; n < adjacency.offsets[f + 1]; ++n) {
+        const int other = label[adjacency.neighbors[n]];
+        if (other >= 0 && other != candidate.view) cost += smoothness_weight;
+      }
+      if (candidate.view == label[f]) current_cost = cost;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_label = candidate.view;
+      }
+    }
+    // Only a strictly lower cost moves a face, so E decreases and sweeps cannot cycle.
+    if (best_cost < current_cost - 1e-9 && best_label != label[f]) {
+      label[f] = best_label;
+      ++changes;
+    }
+  }
+  return changes;
+}
+
+// One sweep of chart moves: each chart, smallest first, takes the label of a neighbouring
+// chart when all its faces are candidates of that view and the energy drops:
+//   dE = sum_{f in chart} (D(f, new) - D(f, old)) - weight * (border pairs with `new`).
+// (No face outside a chart has the chart's label next to it: charts are components.) Charts
+// next to a moved chart wait for the next sweep, whose charts are recomputed. Returns moves.
+int ChartSweep(const FaceCandidates& candidates,
+               const FaceAdjacency& adjacency,
+               double smoothness_weight,
+               std::vector<int>& label) {
+  const Charts charts = ComputeCharts(label, adjacency);
+  std::vector<int> order(charts.chart_view.size());
+  for (std::size_t c = 0; c < order.size(); ++c) order[c] = static_cast<int>(c);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return charts.chart_faces[a].size() < charts.chart_faces[b].size();
+  });
+  std::vector<char> stale(order.size(), 0);
+  int moves = 0;
+  for (const int c : order) {
+    if (stale[c]) continue;
+    std::vector<std::pair<int, int>> border;  // (view, pairs), few entries.
+    for (const int f : charts.chart_faces[c]) {
+      for (int n = adjacency.offsets[f]; n < adjacency.offsets[f + 1]; ++n) {
+        const int other = label[adjacency.neighbors[n]];
+        if (other < 0 || other == label[f]) continue;
+        auto it = std::find_if(border.begin(), border.end(),
+                               [&](const auto& entry) { return entry.first == other; });
+        if (it == border.end())
+          border.emplace_back(other, 1);
+        else
+          ++it->second;
+      }
+    }
+    int best_view = -1;
+    double best_delta = -1e-9;
+    for (const auto& [view, pairs] : border) {
+      double delta = -smoothness_weight * pairs;
+      for (const int f : charts.chart_faces[c]) {
+        const double cost = DataCost(candidates, f, view);
+        if (cost < 0.0) {
+          delta = std::numeric_limits<double>::infinity();
+          break;
+        }
+        delta += cost - DataCost(candidates, f, label[f]);
+      }
+      if (delta < best_delta) {
+        best_delta = delta;
+        best_view = view;
+      }
+    }
+    if (best_view < 0) continue;
+    for (const int f : charts.chart_faces[c]) {
+      label[f] = best_view;
+      for (int n = adjacency.offsets[f]; n < adjacency.offsets[f + 1]; ++n) {
+        const int g = adjacency.neighbors[n];
+        if (charts.face_chart[g] >= 0) stale[charts.face_chart[g]] = 1;
+      }
+    }
+    ++moves;
+  }
+  return moves;
+}
+
+}  // namespace
+
 int SmoothLabels(const FaceCandidates& candidates,
                  const FaceAdjacency& adjacency,
                  double smoothness_weight,
                  int max_sweeps,
                  std::vector<int>* labels) {
   THROW_CHECK_NOTNULL(labels);
-  const int num_faces = static_cast<int>(labels->size());
   THROW_CHECK_EQ(candidates.offsets.size(), labels->size() + 1);
-  std::vector<int>& label = *labels;
   int sweep = 0;
   while (sweep < max_sweeps) {
     ++sweep;
-    int changes = 0;
-    for (int f = 0; f < num_faces; ++f) {
-      if (label[f] < 0 || candidates.NumCandidates(f) < 2) continue;
-      float best_quality = 0.0f;
-      for (int i = candidates.offsets[f]; i < candidates.offsets[f + 1]; ++i) {
-        best_quality = std::max(best_quality, candidates.items[i].quality);
-      }
-      int best_label = label[f];
-      double best_cost = std::numeric_limits<double>::infinity(), current_cost = best_cost;
-      for (int i = candidates.offsets[f]; i < candidates.offsets[f + 1]; ++i) {
-        const FaceCandidate& candidate = candidates.items[i];
-        double cost = 1.0 - candidate.quality / best_quality;
-        for (int n = adjacency.offsets[f]; n < adjacency.offsets[f + 1]; ++n) {
-          const int other = label[adjacency.neighbors[n]];
-          if (other >= 0 && other != candidate.view) cost += smoothness_weight;
-        }
-        if (candidate.view == label[f]) current_cost = cost;
-        if (cost < best_cost) {
-          best_cost = cost;
-          best_label = candidate.view;
-        }
-      }
-      // Only a strictly lower cost moves a face, so E decreases and sweeps cannot cycle.
-      if (!(best_cost < current_cost - 1e-9)) best_label = label[f];
-      if (best_label != label[f]) {
-        label[f] = best_label;
-        ++changes;
-      }
-    }
-    if (changes == 0) break;
+    if (IcmSweep(candidates, adjacency, smoothness_weight, *labels) > 0) continue;
+    if (sweep >= max_sweeps) break;
+    ++sweep;
+    if (ChartSweep(candidates, adjacency, smoothness_weight, *labels) == 0) break;
   }
   return sweep;
 }
