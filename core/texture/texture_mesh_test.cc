@@ -148,6 +148,105 @@ TEST(TextureMesh, BakesDistortedPhotosThroughTheCameraModel) {
   EXPECT_GT(wrong_error, 2.0 * error);
 }
 
+// A box (five faces, no bottom) in front of the wall, seen from the front, the sides and above:
+// every face gets a view that truly sees it whole (the ray from that camera to the face's
+// centroid reaches the face first), and the held-out render matches.
+TEST(TextureMesh, BoxInFrontOfTheWallGetsViewsThatSeeIt) {
+  TexturedScene scene;
+  TriangleMesh mesh;
+  scene.quads.push_back(Wall());
+  AppendQuad(Wall(), 40, 20, false, &mesh);
+  const Eigen::Vector3d o(-0.4, 0.4, 0.3);  // The box spans o + [0, 0.8] x [0, 0.8] x [0, 0.8].
+  const double a = 0.8;
+  const std::vector<std::pair<TexturedQuad, bool>> box = {
+      {texture_test::MakeQuad(o, {a, 0, 0}, {0, 0, a}, 21, {40, 160, 90}), false},  // Front.
+      {texture_test::MakeQuad(o + Eigen::Vector3d(0, a, 0), {a, 0, 0}, {0, 0, a}, 22,
+                              {90, 40, 160}),
+       true},  // Back (facing the wall).
+      {texture_test::MakeQuad(o, {0, a, 0}, {0, 0, a}, 23, {160, 90, 40}), true},  // Left.
+      {texture_test::MakeQuad(o + Eigen::Vector3d(a, 0, 0), {0, a, 0}, {0, 0, a}, 24,
+                              {200, 200, 60}),
+       false},  // Right.
+      {texture_test::MakeQuad(o + Eigen::Vector3d(0, 0, a), {a, 0, 0}, {0, a, 0}, 25,
+                              {60, 200, 200}),
+       false},  // Top.
+  };
+  for (const auto& [quad, flip] : box) {
+    scene.quads.push_back(quad);
+    AppendQuad(quad, 8, 8, flip, &mesh);
+  }
+  std::vector<TextureView> views;
+  for (const auto& [x, z] : {std::pair{-2.5, 1.0}, {0.0, 1.0}, {2.5, 1.0}, {0.0, 3.0}}) {
+    views.push_back(texture_test::RenderView(scene, "v", TestCamera(), CameraAt(x, z)));
+  }
+  const TextureResult result = TextureMesh(mesh, views, TextureOptions(), nullptr, CancelToken());
+  int hidden_labels = 0;
+  for (std::size_t f = 0; f < mesh.NumFaces(); ++f) {
+    const int v = result.face_views[f];
+    if (v < 0) continue;
+    const Eigen::Vector3i& face = mesh.faces[f];
+    const Eigen::Vector3d centroid =
+        (mesh.positions[face[0]] + mesh.positions[face[1]] + mesh.positions[face[2]])
+            .cast<double>() /
+        3.0;
+    const Eigen::Vector3d center = views[v].cam_from_world.CenterInWorld();
+    const auto hit = IntersectRay(scene, center, centroid - center);
+    if (!hit || (hit->point - centroid).norm() > 1e-6) ++hidden_labels;
+  }
+  // Unseen faces: the back of the box (it faces the wall), and wall faces no view sees
+  // whole. None of them is seen whole by a view: all three corners (pulled 1 % towards the
+  // centroid) reached first by the rays from that camera.
+  const int back_faces = 2 * 8 * 8;
+  int unseen_wall = 0, unseen_but_visible = 0;
+  for (std::size_t f = 0; f < mesh.NumFaces(); ++f) {
+    if (result.face_views[f] >= 0) continue;
+    if (f < 40 * 20 * 2) ++unseen_wall;
+    const Eigen::Vector3i& face = mesh.faces[f];
+    const Eigen::Vector3d centroid =
+        (mesh.positions[face[0]] + mesh.positions[face[1]] + mesh.positions[face[2]])
+            .cast<double>() /
+        3.0;
+    for (const TextureView& view : views) {
+      const Eigen::Vector3d center = view.cam_from_world.CenterInWorld();
+      bool whole = true;
+      for (int k = 0; k < 3 && whole; ++k) {
+        const Eigen::Vector3d corner =
+            0.99 * mesh.positions[face[k]].cast<double>() + 0.01 * centroid;
+        const auto hit = IntersectRay(scene, center, corner - center);
+        const auto pixel = view.camera.ImgFromCam(view.cam_from_world * corner);
+        whole = hit && (hit->point - corner).norm() < 1e-6 && pixel && view.camera.InImage(*pixel);
+      }
+      // Facing the camera (the back faces face the wall).
+      const Eigen::Vector3d normal = (mesh.positions[face[1]] - mesh.positions[face[0]])
+                                         .cross(mesh.positions[face[2]] - mesh.positions[face[0]])
+                                         .cast<double>();
+      if (whole && normal.dot(center - centroid) > 0.0) ++unseen_but_visible;
+    }
+  }
+  std::printf("unseen: %d wall faces, %d box faces; seen whole by some view: %d\n", unseen_wall,
+              result.summary.num_unseen_faces - unseen_wall, unseen_but_visible);
+  EXPECT_EQ(unseen_but_visible, 0);
+  EXPECT_EQ(result.summary.num_unseen_faces - unseen_wall, back_faces);
+  std::printf("box: %d faces, %d unseen, charts %d greedy -> %d\n", result.summary.num_faces,
+              result.summary.num_unseen_faces, result.summary.num_charts_greedy,
+              result.summary.num_charts);
+  EXPECT_EQ(hidden_labels, 0);
+  for (int f = 40 * 20 * 2 + back_faces; f < 40 * 20 * 2 + 2 * back_faces; ++f) {
+    EXPECT_EQ(result.face_views[f], -1);
+  }
+
+  PanelScene reference_scene;  // ResamplingError needs a scene; this one has the same wall.
+  reference_scene.scene = scene;
+  reference_scene.mesh = mesh;
+  const HeldOut held_out = RenderHeldOut(reference_scene, result.mesh, kHeldOutPose);
+  const double error = MeanAbsDiff(held_out.truth, held_out.render, held_out.mask);
+  const double reference = ResamplingError(reference_scene, kHeldOutPose, held_out.mask);
+  std::printf("box held-out: coverage %.4f, error %.2f, reference %.2f\n", held_out.coverage, error,
+              reference);
+  EXPECT_GT(held_out.coverage, 0.99);
+  EXPECT_LT(error, reference);
+}
+
 TEST(TextureMesh, UnseenFacesAreGreyAndCounted) {
   PanelScene panel;
   const int seen_faces = static_cast<int>(panel.mesh.NumFaces());
