@@ -364,6 +364,12 @@ TEST(TextureMesh, HonoursCancellationAndChecksInputs) {
   const TextureResult empty =
       TextureMesh(TriangleMesh(), views, TextureOptions(), &progress, CancelToken());
   EXPECT_FALSE(empty.mesh.HasTexture());
+  // No views: every face is unseen, on one page holding the grey block.
+  const TextureResult no_views =
+      TextureMesh(panel.mesh, {}, TextureOptions(), nullptr, CancelToken());
+  EXPECT_EQ(no_views.summary.num_unseen_faces, static_cast<int>(panel.mesh.NumFaces()));
+  EXPECT_EQ(no_views.summary.num_pages, 1);
+  EXPECT_EQ(no_views.mesh.face_pages.size(), panel.mesh.NumFaces());
 }
 
 }  // namespace
