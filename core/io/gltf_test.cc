@@ -18,8 +18,8 @@ namespace reconduit {
 namespace {
 
 namespace fs = std::filesystem;
-using gltf_test::MakeCube;
-using gltf_test::MakeRing;
+using testing_util::MakeCube;
+using testing_util::MakeRing;
 
 class GltfTest : public ::testing::Test {
  protected:
@@ -175,7 +175,7 @@ TEST_F(GltfTest, TexturedCubeReadsBackWithItsTrianglesTexcoordsAndPages) {
     ASSERT_EQ(decoded.cols, 96);
     ASSERT_EQ(decoded.rows, 64);
     const cv::Vec3b bgr = decoded.at<cv::Vec3b>(16, 16);
-    const auto rgb = gltf_test::SideColor(static_cast<int>(3 * p));
+    const auto rgb = testing_util::SideColor(static_cast<int>(3 * p));
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(bgr[2 - k], rgb[k], 6) << "page " << p;
   }
 }

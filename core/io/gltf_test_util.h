@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-namespace reconduit::gltf_test {
+namespace reconduit::testing_util {
 
 // The colour (RGB) of side s of the cube: each side has its own cell of the atlas.
 inline Eigen::Matrix<std::uint8_t, 3, 1> SideColor(int side) {
@@ -101,6 +101,6 @@ inline std::vector<GltfCameraView> MakeRing(const Eigen::Vector3d& target,
   return views;
 }
 
-}  // namespace reconduit::gltf_test
+}  // namespace reconduit::testing_util
 
 #endif  // RECONDUIT_CORE_IO_GLTF_TEST_UTIL_H_

@@ -76,7 +76,7 @@ int main(int argc, char** argv) {
   }
   const std::filesystem::path out = argv[1];
   std::filesystem::create_directories(out);
-  const TriangleMesh mesh = gltf_test::MakeCube(kCenter.cast<float>(), float(kHalf), 2);
+  const TriangleMesh mesh = testing_util::MakeCube(kCenter.cast<float>(), float(kHalf), 2);
   const std::vector<GltfCameraView> cameras = Cameras();
   GltfSummary summary;
   const Status status = WriteModelGlb(out / "model.glb", mesh, cameras, GltfOptions(), &summary);
@@ -102,7 +102,7 @@ int main(int argc, char** argv) {
              static_cast<std::streamsize>(labels.size()));
   nlohmann::json colors = nlohmann::json::array();
   for (int s = 0; s < 6; ++s) {
-    const auto rgb = gltf_test::SideColor(s);
+    const auto rgb = testing_util::SideColor(s);
     colors.push_back({rgb[0], rgb[1], rgb[2]});
   }
   const nlohmann::json expected = {{"model", "model.glb"},
