@@ -16,6 +16,12 @@ if [ ! tests/web/node_modules/.package-lock.json -nt tests/web/package-lock.json
   npm ci --prefix tests/web --no-audit --no-fund --loglevel=error
 fi
 took "npm ci (tests/web)"
+# gltf-validator, three and playwright-core for the model.glb test, as pinned in
+# tests/gltf/package-lock.json.
+if [ ! tests/gltf/node_modules/.package-lock.json -nt tests/gltf/package-lock.json ]; then
+  npm ci --prefix tests/gltf --no-audit --no-fund --loglevel=error
+fi
+took "npm ci (tests/gltf)"
 cmake --preset ci >/dev/null
 cmake --build --preset ci
 took "building (ci preset)"
