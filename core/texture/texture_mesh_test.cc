@@ -6,6 +6,7 @@
 #include "core/util/logging.h"
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <memory>
@@ -48,9 +49,11 @@ struct HeldOut {
   double coverage = 0.0;  // Covered fraction of the pixels the scene covers.
 };
 
-HeldOut RenderHeldOut(const PanelScene& panel, const TriangleMesh& textured, const Rigid3d& pose) {
+HeldOut RenderHeldOut(const TexturedScene& scene,
+                      const TriangleMesh& textured,
+                      const Rigid3d& pose) {
   HeldOut held_out;
-  const RenderedView truth = RenderScene(panel.scene, TestCamera(), pose);
+  const RenderedView truth = RenderScene(scene, TestCamera(), pose);
   const MeshRender render = RenderTexturedMesh(textured, TestCamera(), pose);
   held_out.truth = truth.image;
   held_out.render = render.image;
@@ -70,12 +73,14 @@ HeldOut RenderHeldOut(const PanelScene& panel, const TriangleMesh& textured, con
 // from the held-out view's by up to ~25 % here. The re-render's error must stay below this
 // reference (measured: 5.6 against 8.2; photos with distortion 5.9; the same photos baked as if
 // they had none: 16.4).
-double ResamplingError(const PanelScene& panel, const Rigid3d& pose, const cv::Mat& mask) {
+double ResamplingError(const TexturedScene& scene,
+                       const Rigid3d& pose,
+                       const cv::Mat& original,
+                       const cv::Mat& mask) {
   Camera shifted = TestCamera();
   shifted.cx += 0.5;
   shifted.cy += 0.5;
-  const cv::Mat moved_truth = RenderScene(panel.scene, shifted, pose).image;
-  const cv::Mat original = RenderScene(panel.scene, TestCamera(), pose).image;
+  const cv::Mat moved_truth = RenderScene(scene, shifted, pose).image;
   cv::Mat moved;
   const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, 0.5, 0, 1, 0.5);
   cv::warpAffine(original, moved, shift, original.size(), cv::INTER_LINEAR);
@@ -98,9 +103,10 @@ TEST(TextureMesh, HeldOutRenderMatchesTheDirectRender) {
   EXPECT_EQ(result.mesh.texcoords.size(), 3 * panel.mesh.NumFaces());
   EXPECT_EQ(s.num_pages, 1);
 
-  const HeldOut held_out = RenderHeldOut(panel, result.mesh, kHeldOutPose);
+  const HeldOut held_out = RenderHeldOut(panel.scene, result.mesh, kHeldOutPose);
   const double error = MeanAbsDiff(held_out.truth, held_out.render, held_out.mask);
-  const double reference = ResamplingError(panel, kHeldOutPose, held_out.mask);
+  const double reference =
+      ResamplingError(panel.scene, kHeldOutPose, held_out.truth, held_out.mask);
   std::printf(
       "charts %d greedy -> %d, pages %d; held-out: coverage %.4f, error %.2f, "
       "resampling reference %.2f\n",
@@ -113,7 +119,7 @@ TEST(TextureMesh, HeldOutRenderMatchesTheDirectRender) {
   // a face: far below a pixel). Faces the photo does not see are hidden from it too.
   const TextureResult single =
       TextureMesh(panel.mesh, {views[1]}, TextureOptions(), nullptr, CancelToken());
-  const HeldOut in_sample = RenderHeldOut(panel, single.mesh, views[1].cam_from_world);
+  const HeldOut in_sample = RenderHeldOut(panel.scene, single.mesh, views[1].cam_from_world);
   const double in_sample_error = MeanAbsDiff(in_sample.truth, in_sample.render, in_sample.mask);
   std::printf("in-sample error %.2f, coverage %.4f\n", in_sample_error, in_sample.coverage);
   EXPECT_LT(in_sample_error, 1.0);
@@ -128,15 +134,16 @@ TEST(TextureMesh, BakesDistortedPhotosThroughTheCameraModel) {
   std::vector<TextureView> views = RenderViews(panel.scene, distorted, {-2.0, 0.0, 2.0});
   const TextureResult result =
       TextureMesh(panel.mesh, views, TextureOptions(), nullptr, CancelToken());
-  const HeldOut held_out = RenderHeldOut(panel, result.mesh, kHeldOutPose);
+  const HeldOut held_out = RenderHeldOut(panel.scene, result.mesh, kHeldOutPose);
   const double error = MeanAbsDiff(held_out.truth, held_out.render, held_out.mask);
-  const double reference = ResamplingError(panel, kHeldOutPose, held_out.mask);
+  const double reference =
+      ResamplingError(panel.scene, kHeldOutPose, held_out.truth, held_out.mask);
 
   // The same photos taken for distortion-free: texture lands up to ~10 px off.
   for (TextureView& view : views) view.camera.k1 = view.camera.k2 = 0.0;
   const TextureResult wrong =
       TextureMesh(panel.mesh, views, TextureOptions(), nullptr, CancelToken());
-  const HeldOut wrong_held_out = RenderHeldOut(panel, wrong.mesh, kHeldOutPose);
+  const HeldOut wrong_held_out = RenderHeldOut(panel.scene, wrong.mesh, kHeldOutPose);
   const double wrong_error =
       MeanAbsDiff(wrong_held_out.truth, wrong_held_out.render, held_out.mask & wrong_held_out.mask);
   std::printf(
@@ -235,16 +242,73 @@ TEST(TextureMesh, BoxInFrontOfTheWallGetsViewsThatSeeIt) {
     EXPECT_EQ(result.face_views[f], -1);
   }
 
-  PanelScene reference_scene;  // ResamplingError needs a scene; this one has the same wall.
-  reference_scene.scene = scene;
-  reference_scene.mesh = mesh;
-  const HeldOut held_out = RenderHeldOut(reference_scene, result.mesh, kHeldOutPose);
+  const HeldOut held_out = RenderHeldOut(scene, result.mesh, kHeldOutPose);
   const double error = MeanAbsDiff(held_out.truth, held_out.render, held_out.mask);
-  const double reference = ResamplingError(reference_scene, kHeldOutPose, held_out.mask);
+  const double reference = ResamplingError(scene, kHeldOutPose, held_out.truth, held_out.mask);
   std::printf("box held-out: coverage %.4f, error %.2f, reference %.2f\n", held_out.coverage, error,
               reference);
   EXPECT_GT(held_out.coverage, 0.99);
   EXPECT_LT(error, reference);
+}
+
+// The room with boxes of core/scene (floor, four walls, four boxes that may interpenetrate),
+// seen by a ring of 8 cameras: 6 texture it, 2 are held out. Unseen faces are drawn in a colour
+// the scene does not have and left out of the comparison; they are the floor beyond 80 deg from
+// every view, and floor hidden behind the boxes from all six. Measured: errors 8.5 and 8.1
+// against references 9.1 and 9.3.
+TEST(TextureMesh, RoomWithBoxesMatchesHeldOutViews) {
+  const TexturedScene scene = MakeBoxRoomScene(5);
+  const std::vector<Rigid3d> ring = BoxRoomCameraRing(8);
+  std::vector<Rigid3d> training, held_out_poses;
+  for (std::size_t i = 0; i < ring.size(); ++i)
+    (i % 4 == 1 ? held_out_poses : training).push_back(ring[i]);
+  TriangleMesh mesh;
+  // Outside: towards the room's middle for the floor and walls (the first five quads), away
+  // from the box's middle for a box's faces (five per box).
+  for (std::size_t q = 0; q < scene.quads.size(); ++q) {
+    const auto middle = [&](std::size_t i) {
+      const TexturedQuad& quad = scene.quads[i];
+      return Eigen::Vector3d(quad.origin + 0.5 * (quad.edge_u + quad.edge_v));
+    };
+    Eigen::Vector3d inside(0.0, 0.0, 1.5);
+    if (q >= 5) {
+      const std::size_t first = 5 + (q - 5) / 5 * 5;
+      inside = (middle(first) + middle(first + 1) + middle(first + 2) + middle(first + 3)) / 4.0;
+    }
+    const TexturedQuad& quad = scene.quads[q];
+    const Eigen::Vector3d normal = quad.edge_u.cross(quad.edge_v);
+    const bool towards_inside = normal.dot(inside - middle(q)) > 0.0;
+    const int n_u = std::max(2, static_cast<int>(quad.edge_u.norm() / 0.15));
+    const int n_v = std::max(2, static_cast<int>(quad.edge_v.norm() / 0.15));
+    AppendQuad(quad, n_u, n_v, q < 5 ? !towards_inside : towards_inside, &mesh);
+  }
+  std::vector<TextureView> views;
+  for (const Rigid3d& pose : training)
+    views.push_back(texture_test::RenderView(scene, "v", TestCamera(), pose));
+  TextureOptions options;
+  options.unseen_color = Eigen::Vector3d(1, 2, 3);
+  const TextureResult result = TextureMesh(mesh, views, options, nullptr, CancelToken());
+  const TextureSummary& s = result.summary;
+  std::printf(
+      "room: %d faces, %d unseen, charts %d greedy -> %d, %d pages, seams %.2f -> %.2f, "
+      "%.2f s\n",
+      s.num_faces, s.num_unseen_faces, s.num_charts_greedy, s.num_charts, s.num_pages,
+      s.seam_difference_before, s.seam_difference_after, s.total_seconds);
+  EXPECT_LT(s.num_charts, s.num_charts_greedy);
+  for (const Rigid3d& pose : held_out_poses) {
+    const HeldOut held_out = RenderHeldOut(scene, result.mesh, pose);
+    cv::Mat unseen;
+    cv::inRange(held_out.render, cv::Scalar(1, 2, 3), cv::Scalar(1, 2, 3), unseen);
+    const cv::Mat textured = held_out.mask & ~unseen;
+    const double unseen_fraction = cv::countNonZero(unseen) / double(unseen.total());
+    const double error = MeanAbsDiff(held_out.truth, held_out.render, textured);
+    const double reference = ResamplingError(scene, pose, held_out.truth, textured);
+    std::printf("room held-out: coverage %.4f (unseen faces %.4f), error %.2f, reference %.2f\n",
+                held_out.coverage, unseen_fraction, error, reference);
+    EXPECT_GT(held_out.coverage, 0.98);
+    EXPECT_LT(unseen_fraction, 0.12);  // Measured: 5.7 % and 8.7 % of the image.
+    EXPECT_LT(error, reference);
+  }
 }
 
 TEST(TextureMesh, UnseenFacesAreGreyAndCounted) {
@@ -314,7 +378,7 @@ TEST(TextureMesh, SmallPagesMakeMorePagesWithinThePageSize) {
     EXPECT_LE(uv.maxCoeff(), 1.0f);
   }
   // Shrunk charts still show the right place, blurred: coverage stays full.
-  const HeldOut held_out = RenderHeldOut(panel, result.mesh, kHeldOutPose);
+  const HeldOut held_out = RenderHeldOut(panel.scene, result.mesh, kHeldOutPose);
   EXPECT_GT(held_out.coverage, 0.99);
 }
 
