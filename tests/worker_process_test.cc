@@ -373,7 +373,7 @@ TEST_F(WorkerProcessTest, SigtermMidJobReleasesItAndTheNextWorkerFinishesIt) {
 
 // The stages a run can resume, in pipeline order (export and packaging always run again).
 const std::vector<std::string> kResumableStages = {"ingest", "features", "pairs", "matching",
-                                                   "sparse", "dense",    "mesh"};
+                                                   "sparse", "dense",    "mesh",     "texture"};
 
 // One moment of a job's life at which its worker dies by SIGKILL.
 struct KillMoment {
@@ -410,9 +410,9 @@ TEST_F(WorkerProcessTest, KillDashNineAtElevenMomentsEveryJobFinishesOnce) {
       {"matching's marker written, store not told", "stage-done:matching", "", 0ms, 4, false},
       {"in the middle of sparse", "", "sparse", 100ms, 4, false},
       {"in the middle of dense, a depth map finished", "", "dense", 0ms, 5, false},
-      {"packaging started", "stage-started:package", "", 0ms, 7, false},
-      {"result.zip renamed into place, store not told", "stage-done:package", "", 0ms, 7, true},
-      {"result.zip checked, FinishSucceeded not called", "before-finish", "", 0ms, 7, true},
+      {"packaging started", "stage-started:package", "", 0ms, 8, false},
+      {"result.zip renamed into place, store not told", "stage-done:package", "", 0ms, 8, true},
+      {"result.zip checked, FinishSucceeded not called", "before-finish", "", 0ms, 8, true},
   };
   // All jobs queued from the start: each doomed worker and each rescuer takes the oldest queued
   // job, and nothing may take a job that is not its turn.

@@ -3,7 +3,7 @@
 'use strict';
 
 const API = '/api/v1';
-const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'dense', 'mesh', 'export', 'package'];
+const STAGES = ['ingest', 'features', 'pairs', 'matching', 'sparse', 'dense', 'mesh', 'texture', 'export', 'package'];
 // A per-map table longer than this starts collapsed.
 const LONG_MAP_LIST = 12;
 const FINAL = new Set(['succeeded', 'failed', 'canceled']);

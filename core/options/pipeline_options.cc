@@ -122,6 +122,14 @@ std::vector<OptionSpec> MakeSpecs() {
       "mesh_max_faces", &PipelineOptions::mesh_max_faces, 1000, 20000000,
       "The surface is simplified to at most this many triangles; flat parts lose theirs first. "
       "500,000 keep a façade's carvings and load in a phone's browser."));
+  specs.push_back(BooleanOption(
+      "texture", &PipelineOptions::texture,
+      "Texture the surface from the photos (model.glb's texture). Off, model.glb is coloured by "
+      "the mesh's vertices."));
+  specs.push_back(IntegerOption(
+      "texture_page_size", &PipelineOptions::texture_page_size, 256, 16384,
+      "Largest side of a texture page, pixels; more pages rather than one huge image. 4096 is "
+      "what phone browsers still display."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;

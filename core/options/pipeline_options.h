@@ -55,6 +55,11 @@ struct PipelineOptions {
   bool mesh = true;
   // The mesh is simplified to at most this many triangles. [1000, 20000000]
   int mesh_max_faces = 500000;
+  // The texture (the texture stage): one photo per face baked into atlas pages; off, model.glb
+  // has the mesh's vertex colours. [bool]
+  bool texture = true;
+  // Largest side of an atlas page, pixels. [256, 16384]
+  int texture_page_size = 4096;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 

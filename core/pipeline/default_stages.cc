@@ -9,6 +9,7 @@
 #include "core/pipeline/stages/package_stage.h"
 #include "core/pipeline/stages/pairs_stage.h"
 #include "core/pipeline/stages/sparse_stage.h"
+#include "core/pipeline/stages/texture_stage.h"
 
 #include <functional>
 #include <utility>
@@ -28,6 +29,7 @@ std::vector<std::pair<std::string, StageFactory>> WorkStages() {
       {"sparse", [] { return std::make_unique<SparseStage>(); }},
       {"dense", [] { return std::make_unique<DenseStage>(); }},
       {"mesh", [] { return std::make_unique<MeshStage>(); }},
+      {"texture", [] { return std::make_unique<TextureStage>(); }},
   };
 }
 

@@ -16,14 +16,15 @@ std::vector<std::string> NamesOf(const std::vector<std::unique_ptr<Stage>>& stag
 
 TEST(DefaultStages, UntilNamesTheWorkStagesOnly) {
   EXPECT_THAT(PipelineStageNames(),
-              ElementsAre("ingest", "features", "pairs", "matching", "sparse", "dense", "mesh"));
+              ElementsAre("ingest", "features", "pairs", "matching", "sparse", "dense", "mesh",
+                          "texture"));
 }
 
 TEST(DefaultStages, ExportAndPackagingAlwaysRunLast) {
   auto all = CreatePipelineStages();
   ASSERT_TRUE(all.ok()) << all.status();
   EXPECT_THAT(NamesOf(*all), ElementsAre("ingest", "features", "pairs", "matching", "sparse",
-                                         "dense", "mesh", "export", "package"));
+                                         "dense", "mesh", "texture", "export", "package"));
   // `--until sparse` still delivers the sparse files.
   auto sparse = CreatePipelineStages("sparse");
   ASSERT_TRUE(sparse.ok()) << sparse.status();
@@ -39,7 +40,7 @@ TEST(DefaultStages, UnknownStageListsTheKnownOnes) {
   ASSERT_FALSE(stages.ok());
   EXPECT_EQ(
       stages.status().message(),
-      "unknown stage 'export'; stages: ingest, features, pairs, matching, sparse, dense, mesh");
+      "unknown stage 'export'; stages: ingest, features, pairs, matching, sparse, dense, mesh, texture");
 }
 
 }  // namespace

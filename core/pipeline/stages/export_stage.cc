@@ -7,6 +7,7 @@
 #include "core/io/reconstruction_json.h"
 #include "core/pipeline/stages/dense_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
+#include "core/pipeline/stages/texture_stage.h"
 
 #include <algorithm>
 #include <filesystem>
@@ -48,14 +49,18 @@ Result<std::vector<std::string>> ExportSparse(const Workspace& workspace, const 
 // One entry per stage with deliverables, in pipeline order: the stage's name and the function
 // that writes its deliverables into output/ from its work folder and returns the files it
 // wrote (relative to output/). An entry runs when its stage ran (or resumed) successfully in
-// this run.
+// this run, unless the stage named by `unless` did too (the untextured model.glb is written
+// only where no textured one is).
 struct Exporter {
   std::string_view stage;
   Result<std::vector<std::string>> (*write)(const Workspace& workspace, const fs::path& output_dir);
+  std::string_view unless = "";
 };
 constexpr Exporter kExporters[] = {
     {"sparse", ExportSparse},
     {"dense", ExportDenseResults},
+    {"mesh", ExportUntexturedModel, "texture"},
+    {"texture", ExportTexturedModel},
 };
 
 bool StageSucceeded(const std::vector<StageRecord>& previous, std::string_view stage) {
@@ -70,7 +75,9 @@ StageResult ExportStage::Run(StageContext& context) const {
   const Workspace& workspace = context.workspace;
   std::vector<const Exporter*> due;
   for (const Exporter& exporter : kExporters) {
-    if (StageSucceeded(context.previous, exporter.stage)) due.push_back(&exporter);
+    if (StageSucceeded(context.previous, exporter.stage) &&
+        (exporter.unless.empty() || !StageSucceeded(context.previous, exporter.unless)))
+      due.push_back(&exporter);
   }
   context.progress.Restart(due.size(), "writing the deliverables");
   std::string exported;

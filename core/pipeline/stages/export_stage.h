@@ -13,6 +13,9 @@
 //   depth/<name>.png, .json every photo's depth map (16-bit) with its range, camera and pose
 //   quality/<name>.png      every photo's quality map (how many photos agree, 8-bit)
 //   report/dense/           previews of both
+// and from the mesh and texture stages (mesh_stage.h, texture_stage.h):
+//   model.glb               the textured mesh with the cameras (untextured, with the mesh's
+//                           vertex colours, when the texture stage did not run or skipped)
 // A stage that did not run (a run stopped early with --until) exports nothing. A later stage
 // (dense points, mesh, texture) adds its deliverables with one entry in the exporter table of
 // export_stage.cc.

@@ -1,0 +1,136 @@
+#include "core/pipeline/stages/texture_stage.h"
+
+#include "core/image/image_reader.h"
+#include "core/io/gltf.h"
+#include "core/io/mesh_ply.h"
+#include "core/io/reconstruction_json.h"
+#include "core/pipeline/stages/ingest_stage.h"
+#include "core/texture/texture_mesh.h"
+#include "core/util/logging.h"
+
+#include <map>
+#include <stdexcept>
+
+namespace reconduit {
+namespace {
+
+namespace fs = std::filesystem;
+
+StageResult Skipped(const std::string& reason) {
+  LOG_WARNING << "texture: skipped: " << reason;
+  return StageResult::Success({{"skipped_reason", reason}});
+}
+
+// The registered photos as glTF camera nodes, in increasing image id (cameras.json's order).
+std::vector<GltfCameraView> GltfCameras(const Reconstruction& model) {
+  std::vector<GltfCameraView> cameras;
+  for (const auto& [id, image] : model.images)
+    cameras.push_back({image.name, model.cameras.at(image.camera_id), image.cam_from_world});
+  return cameras;
+}
+
+nlohmann::json GltfJson(const GltfSummary& s) {
+  return {{"vertices", s.num_vertices},   {"faces", s.num_faces},
+          {"primitives", s.num_primitives}, {"images", s.num_images},
+          {"cameras", s.num_cameras},     {"bytes", s.file_bytes}};
+}
+
+nlohmann::json TextureJson(const TextureSummary& s) {
+  return {{"faces", s.num_faces},
+          {"textured_faces", s.num_textured_faces},
+          {"unseen_faces", s.num_unseen_faces},
+          {"charts_greedy", s.num_charts_greedy},
+          {"charts", s.num_charts},
+          {"pages", s.num_pages},
+          {"seam_difference_before", s.seam_difference_before},
+          {"seam_difference_after", s.seam_difference_after},
+          {"seconds",
+           {{"visibility", s.visibility_seconds},
+            {"labelling", s.labelling_seconds},
+            {"atlas", s.atlas_seconds},
+            {"bake", s.bake_seconds},
+            {"levelling", s.levelling_seconds}}}};
+}
+
+// The photos as TextureView, each loading its original pixels when asked.
+Result<std::vector<TextureView>> TextureViews(const Workspace& workspace,
+                                              const Reconstruction& model,
+                                              const PipelineOptions& options) {
+  auto images = ReadIngestedImages(workspace);
+  if (!images.ok()) return images.status();
+  std::map<int, fs::path> paths;
+  for (const IngestedImage& image : *images) paths[image.index] = image.path;
+  ImageReaderOptions reader;
+  reader.min_side = options.min_image_side;
+  reader.max_pixels = options.max_image_pixels;
+  reader.read_exif = false;  // As the features and dense stages read them.
+  std::vector<TextureView> views;
+  for (const auto& [id, image] : model.images) {
+    if (!paths.count(id)) return Status::Internal("no ingested photo for image " + std::to_string(id));
+    const fs::path path = paths.at(id);
+    views.push_back({image.name, model.cameras.at(image.camera_id), image.cam_from_world,
+                     [path, reader]() {
+                       auto pixels = ReadImage(path, reader);
+                       if (!pixels.ok())
+                         throw std::runtime_error("texture: " + pixels.status().message());
+                       return *pixels;
+                     }});
+  }
+  return views;
+}
+
+}  // namespace
+
+StageResult TextureStage::Run(StageContext& context) const {
+  if (!context.options.texture) return Skipped("turned off (option texture)");
+  const fs::path mesh_path = context.workspace.StageDir("mesh") / "mesh.ply";
+  if (!fs::exists(mesh_path)) return Skipped("no mesh (the mesh stage skipped)");
+  auto mesh = ReadMeshPly(mesh_path);
+  if (!mesh.ok()) return StageResult::Failed(mesh.status().message());
+  auto model = ReadReconstructionJson(context.workspace.StageDir("sparse") / "model_0.json");
+  if (!model.ok()) return StageResult::Failed(model.status().message());
+  auto views = TextureViews(context.workspace, *model, context.options);
+  if (!views.ok()) return StageResult::Failed(views.status().message());
+
+  TextureOptions options;
+  options.page_size = context.options.texture_page_size;
+  options.num_threads = context.options.num_threads;
+  TextureResult textured =
+      TextureMesh(*mesh, *views, options, &context.progress, context.cancel);
+  context.progress.SetMessage("writing model.glb");
+  GltfSummary gltf;
+  const Status written = WriteModelGlb(context.stage_dir / "model.glb", textured.mesh,
+                                       GltfCameras(*model), GltfOptions(), &gltf);
+  if (!written.ok()) return StageResult::Failed(written.message());
+  LOG_INFO << "texture: " << textured.summary.num_charts << " charts on "
+           << textured.summary.num_pages << " pages, " << textured.summary.num_unseen_faces
+           << " of " << textured.summary.num_faces << " faces unseen; model.glb "
+           << gltf.file_bytes << " bytes";
+  return StageResult::Success({{"texture", TextureJson(textured.summary)}, {"model", GltfJson(gltf)}});
+}
+
+Result<std::vector<std::string>> ExportTexturedModel(const Workspace& workspace, const fs::path& out) {
+  const fs::path model = workspace.StageDir("texture") / "model.glb";
+  if (!fs::exists(model)) return std::vector<std::string>{};  // Skipped.
+  std::error_code ec;
+  fs::copy_file(model, out / "model.glb", fs::copy_options::overwrite_existing, ec);
+  if (ec) return Status::Internal("cannot copy model.glb: " + ec.message());
+  return std::vector<std::string>{"model.glb"};
+}
+
+Result<std::vector<std::string>> ExportUntexturedModel(const Workspace& workspace,
+                                                       const fs::path& out) {
+  const fs::path mesh_path = workspace.StageDir("mesh") / "mesh.ply";
+  if (!fs::exists(mesh_path)) return std::vector<std::string>{};  // Skipped.
+  auto mesh = ReadMeshPly(mesh_path);
+  if (!mesh.ok()) return mesh.status();
+  auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
+  if (!model.ok()) return model.status();
+  GltfSummary gltf;
+  const Status written =
+      WriteModelGlb(out / "model.glb", *mesh, GltfCameras(*model), GltfOptions(), &gltf);
+  if (!written.ok()) return written;
+  return std::vector<std::string>{"model.glb"};
+}
+
+}  // namespace reconduit
