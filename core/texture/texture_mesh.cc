@@ -87,6 +87,7 @@ AtlasPlan PlanAtlas(const Charts& charts,
                     const TextureOptions& options) {
   AtlasPlan plan;
   std::vector<int> widths, heights;
+  double total_texels = 0.0;
   for (std::size_t c = 0; c < charts.chart_view.size(); ++c) {
     const Camera& camera = views[charts.chart_view[c]].camera;
     Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
@@ -104,16 +105,23 @@ AtlasPlan PlanAtlas(const Charts& charts,
         std::min(camera.height - 1, static_cast<int>(std::ceil(hi.y())) + options.padding);
     ChartPlacement placement;
     placement.rect = cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
-    placement.size = placement.rect.size();
-    const int longest = std::max(placement.size.width, placement.size.height);
-    if (longest > options.page_size) {  // Shrink to fit a page.
-      const double scale = options.page_size / static_cast<double>(longest);
-      placement.size.width =
-          std::clamp(static_cast<int>(placement.size.width * scale), 1, options.page_size);
-      placement.size.height =
-          std::clamp(static_cast<int>(placement.size.height * scale), 1, options.page_size);
-    }
     plan.charts.push_back(placement);
+    total_texels += double(placement.rect.width) * placement.rect.height;
+  }
+  // One scale for all charts when their photo rectangles exceed max_megatexels (keeps the
+  // relative resolution of the views), and per chart to fit a page.
+  const double budget_scale =
+      std::min(1.0, std::sqrt(options.max_megatexels * 1e6 / std::max(1.0, total_texels)));
+  for (ChartPlacement& placement : plan.charts) {
+    const int longest = std::max(placement.rect.width, placement.rect.height);
+    const double scale = std::min(budget_scale, options.page_size / static_cast<double>(longest));
+    placement.size = placement.rect.size();
+    if (scale < 1.0) {
+      placement.size.width =
+          std::clamp(static_cast<int>(placement.rect.width * scale), 1, options.page_size);
+      placement.size.height =
+          std::clamp(static_cast<int>(placement.rect.height * scale), 1, options.page_size);
+    }
     widths.push_back(placement.size.width);
     heights.push_back(placement.size.height);
   }
@@ -402,6 +410,8 @@ bool TextureOptions::Check(std::string* error) const {
     message << "smoothness_weight must be >= 0 and finite, got " << smoothness_weight;
   } else if (max_smoothing_sweeps < 0) {
     message << "max_smoothing_sweeps must be >= 0, got " << max_smoothing_sweeps;
+  } else if (!(max_megatexels > 0.0)) {
+    message << "max_megatexels must be > 0, got " << max_megatexels;
   } else if (!(seam_outlier_threshold > 0.0)) {
     message << "seam_outlier_threshold must be > 0, got " << seam_outlier_threshold;
   } else if (!(unseen_color.minCoeff() >= 0.0 && unseen_color.maxCoeff() <= 255.0)) {

@@ -14,7 +14,7 @@
 //     projected into its photo through the camera's distortion model, so the photo is used as
 //     it was taken (no undistortion, no resampling); the chart's bounding rectangle in the photo,
 //     plus `padding` pixels for bilinear and mip-map filtering, is copied into an atlas page
-//     (atlas_packing.h), shrunk only when it would not fit a page. The rectangle's pixels
+//     (atlas_packing.h), shrunk only to fit a page or max_megatexels. The rectangle's pixels
 //     outside the chart's faces are the photo's own (the surface around the chart), so texture
 //     filtering across a chart's border reads plausible colours and no dilation is needed; the
 //     price is that an irregular chart carries the unused photo pixels of its bounding box.
@@ -64,6 +64,11 @@ struct TextureView {
 struct TextureOptions {
   // Largest side of an atlas page, pixels, >= 64. 4096 is what phone browsers still display.
   int page_size = 4096;
+  // Largest total area of the charts' photo rectangles, in millions of texels, > 0: above it
+  // every chart is shrunk by one factor. The atlas costs 3 bytes a texel in memory (and the
+  // pages' JPEGs in model.glb ~0.3-1 byte); 64 holds fountain-P11's eleven 6.3 MP photos at
+  // nearly full resolution in four 4096² pages' worth.
+  double max_megatexels = 64.0;
   // Pixels of photo kept around each chart's bounding rectangle, [0, 16], so that bilinear
   // filtering and the first mip levels read photo pixels rather than a neighbour chart.
   int padding = 2;
