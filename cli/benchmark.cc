@@ -326,6 +326,31 @@ void PrintMesh(const PipelineResult& result) {
   }
 }
 
+// The texture stage's figures and how the model compares with the first photo.
+void PrintTexture(const PipelineResult& result) {
+  for (const StageRecord& record : result.stages) {
+    if (record.name != "texture" || record.status != StageStatus::kSuccess) continue;
+    const nlohmann::json& s = record.summary;
+    if (s.contains("skipped_reason")) {
+      std::cout << "  texture             skipped: " << s["skipped_reason"].get<std::string>()
+                << "\n";
+      return;
+    }
+    const nlohmann::json& t = s.value("texture", nlohmann::json::object());
+    std::cout << std::setprecision(4) << "  texture             " << t.value("charts", 0)
+              << " charts on " << t.value("pages", 0) << " pages, " << t.value("unseen_faces", 0)
+              << " of " << t.value("faces", 0) << " faces unseen; model.glb "
+              << s.value("model", nlohmann::json::object()).value("bytes", 0) << " bytes\n";
+    for (const nlohmann::json& render : s.value("renders", nlohmann::json::array())) {
+      if (!render["mean_abs_diff"].is_number()) continue;
+      std::cout << "  model vs " << render["name"].get<std::string>() << "   "
+                << 100.0 * render["covered"].get<double>() << " % covered, mean abs. difference "
+                << render["mean_abs_diff"].get<double>() << " (1024 px wide)\n";
+      break;  // The first photo: the figure.
+    }
+  }
+}
+
 // Time and peak memory of our stages (the package stage's time aside).
 struct OurRun {
   PipelineResult result;
@@ -363,6 +388,7 @@ OurRun RunOurs(const std::vector<std::unique_ptr<Stage>>& stages,
   }
   PrintDense(run.result);
   PrintMesh(run.result);
+  PrintTexture(run.result);
   return run;
 }
 

@@ -133,11 +133,11 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   assert.match(await page.textContent('#job'), /Computing depth maps: 11 maps/);
   assert.match(page.url(), /#[0-9a-f]{32}$/);
 
-  // Every stage finished (dense included), the camera table shows a focal length, the pictures
-  // load.
+  // Every stage finished (dense, mesh and texture included), the camera table shows a focal
+  // length, the pictures load.
   const statuses = await page.$$eval('#stage-rows tr td:nth-child(2)', (cells) =>
       cells.map((cell) => cell.textContent));
-  assert.deepEqual(statuses, Array(8).fill('success'));
+  assert.deepEqual(statuses, Array(10).fill('success'));
   // The focal length with its precision (one standard deviation).
   assert.match(await page.textContent('#cameras'), /\d+\.\d\d ± \d+\.\d\d/);
   // The two matching pictures and a depth and a quality preview per photo (lazy: scrolled to).
@@ -252,7 +252,8 @@ test('shows each stage\'s time, own peak memory and the process\'s, and the per-
   // A row per stage of the pipeline, dense among them, with its time and both peaks.
   assert.deepEqual(await cellTexts(page, '#stage-rows tr td:nth-child(1)'),
                    ['Reading photos', 'Finding features', 'Choosing pairs', 'Matching',
-                    'Cameras and points', 'Dense matching', 'Writing results', 'package']);
+                    'Cameras and points', 'Dense matching', 'mesh', 'texture', 'Writing results',
+                    'package']);
   const dense = '#stage-rows tr[data-stage="dense"]';
   assert.deepEqual(await cellTexts(page, `${dense} td`),
                    ['Dense matching', 'success', '', '1 min 1 s', '1.50 GiB', '3.00 GiB',

@@ -5,9 +5,13 @@
 #include "core/io/mesh_ply.h"
 #include "core/io/reconstruction_json.h"
 #include "core/pipeline/stages/ingest_stage.h"
+#include "core/texture/render_textured_mesh.h"
 #include "core/texture/texture_mesh.h"
 #include "core/util/logging.h"
 
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
 #include <map>
 #include <stdexcept>
 
@@ -30,9 +34,9 @@ std::vector<GltfCameraView> GltfCameras(const Reconstruction& model) {
 }
 
 nlohmann::json GltfJson(const GltfSummary& s) {
-  return {{"vertices", s.num_vertices},   {"faces", s.num_faces},
+  return {{"vertices", s.num_vertices},     {"faces", s.num_faces},
           {"primitives", s.num_primitives}, {"images", s.num_images},
-          {"cameras", s.num_cameras},     {"bytes", s.file_bytes}};
+          {"cameras", s.num_cameras},       {"bytes", s.file_bytes}};
 }
 
 nlohmann::json TextureJson(const TextureSummary& s) {
@@ -66,17 +70,49 @@ Result<std::vector<TextureView>> TextureViews(const Workspace& workspace,
   reader.read_exif = false;  // As the features and dense stages read them.
   std::vector<TextureView> views;
   for (const auto& [id, image] : model.images) {
-    if (!paths.count(id)) return Status::Internal("no ingested photo for image " + std::to_string(id));
+    if (!paths.count(id))
+      return Status::Internal("no ingested photo for image " + std::to_string(id));
     const fs::path path = paths.at(id);
-    views.push_back({image.name, model.cameras.at(image.camera_id), image.cam_from_world,
-                     [path, reader]() {
-                       auto pixels = ReadImage(path, reader);
-                       if (!pixels.ok())
-                         throw std::runtime_error("texture: " + pixels.status().message());
-                       return *pixels;
-                     }});
+    views.push_back(
+        {image.name, model.cameras.at(image.camera_id), image.cam_from_world, [path, reader]() {
+           auto pixels = ReadImage(path, reader);
+           if (!pixels.ok()) throw std::runtime_error("texture: " + pixels.status().message());
+           return *pixels;
+         }});
   }
   return views;
+}
+
+// Width of the renders that compare the model with each photo (the 1024 px).
+constexpr int kCompareWidth = 1024;
+
+// The model rendered through each photo's camera at kCompareWidth pixels wide, against the
+// photo resized to that size: the share of the photo the model covers, and the mean absolute
+// difference of the covered pixels (grey levels 0-255, mean over the three channels). Both are
+// per photo in report.json; the same figures for photos held out of texturing will tell how
+// well the model predicts a view it was not made from.
+nlohmann::json CompareWithPhotos(const TriangleMesh& mesh,
+                                 const std::vector<TextureView>& views,
+                                 const CancelToken& cancel) {
+  nlohmann::json renders = nlohmann::json::array();
+  for (const TextureView& view : views) {
+    cancel.ThrowIfCanceled();
+    const double scale = static_cast<double>(kCompareWidth) / view.camera.width;
+    const Camera camera = view.camera.Scaled(scale);
+    const MeshRender render = RenderTexturedMesh(mesh, camera, view.cam_from_world);
+    cv::Mat photo;
+    cv::resize(view.load(), photo, cv::Size(camera.width, camera.height), 0, 0, cv::INTER_AREA);
+    if (photo.channels() == 1) cv::cvtColor(photo, photo, cv::COLOR_GRAY2BGR);
+    cv::Mat difference;
+    cv::absdiff(photo, render.image, difference);
+    const int covered = cv::countNonZero(render.coverage);
+    const cv::Scalar sum = cv::sum(difference.setTo(cv::Scalar::all(0), render.coverage == 0));
+    const double mad = covered > 0 ? (sum[0] + sum[1] + sum[2]) / (3.0 * covered) : NAN;
+    renders.push_back({{"name", view.name},
+                       {"covered", static_cast<double>(covered) / render.coverage.total()},
+                       {"mean_abs_diff", std::isfinite(mad) ? nlohmann::json(mad) : nullptr}});
+  }
+  return renders;
 }
 
 }  // namespace
@@ -95,21 +131,25 @@ StageResult TextureStage::Run(StageContext& context) const {
   TextureOptions options;
   options.page_size = context.options.texture_page_size;
   options.num_threads = context.options.num_threads;
-  TextureResult textured =
-      TextureMesh(*mesh, *views, options, &context.progress, context.cancel);
+  TextureResult textured = TextureMesh(*mesh, *views, options, &context.progress, context.cancel);
   context.progress.SetMessage("writing model.glb");
   GltfSummary gltf;
   const Status written = WriteModelGlb(context.stage_dir / "model.glb", textured.mesh,
                                        GltfCameras(*model), GltfOptions(), &gltf);
   if (!written.ok()) return StageResult::Failed(written.message());
+  context.progress.SetMessage("comparing the model with the photos");
+  const nlohmann::json renders = CompareWithPhotos(textured.mesh, *views, context.cancel);
   LOG_INFO << "texture: " << textured.summary.num_charts << " charts on "
            << textured.summary.num_pages << " pages, " << textured.summary.num_unseen_faces
-           << " of " << textured.summary.num_faces << " faces unseen; model.glb "
-           << gltf.file_bytes << " bytes";
-  return StageResult::Success({{"texture", TextureJson(textured.summary)}, {"model", GltfJson(gltf)}});
+           << " of " << textured.summary.num_faces << " faces unseen; model.glb " << gltf.file_bytes
+           << " bytes";
+  return StageResult::Success({{"texture", TextureJson(textured.summary)},
+                               {"model", GltfJson(gltf)},
+                               {"renders", renders}});
 }
 
-Result<std::vector<std::string>> ExportTexturedModel(const Workspace& workspace, const fs::path& out) {
+Result<std::vector<std::string>> ExportTexturedModel(const Workspace& workspace,
+                                                     const fs::path& out) {
   const fs::path model = workspace.StageDir("texture") / "model.glb";
   if (!fs::exists(model)) return std::vector<std::string>{};  // Skipped.
   std::error_code ec;
