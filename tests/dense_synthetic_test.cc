@@ -600,11 +600,12 @@ void RunCase(SyntheticCase c, const RunOptions& options) {
            << " m^2 seen by >= 3 photos); plain panel: " << f.plain_covered << " of "
            << f.plain_area << " m^2 covered";
   EXPECT_GE(f.accuracy, 0.9) << c.name;
-  // The completeness counts surface seen by >= 2 photos. It is not met yet where much
-  // of the surface is seen by exactly two (the terrain's outer ring, the room's corners: 64 %
-  // and 81 % here): the two must be each other's PatchMatch sources, and view selection picks
-  // sources by triangulation score, not by what they cover (docs/STATUS.md). The quick variant
-  // holds the surface seen by >= 3 photos to the 90 %; the long one, the figure.
+  // The completeness counts surface seen by >= 2 photos: the two must be each other's
+  // PatchMatch sources, which view selection's sources for coverage see to (view_selection.h;
+  // by score alone the long variant's terrain and room got 71 % and 89 %, now 99.9 % and 94 %).
+  // At 320 x 240 the room stays near 89 % (its 6 photos use all 5 others as sources already:
+  // what is missing is near the borders of small images), so the quick variant holds the
+  // surface seen by >= 3 photos to the 90 %; the long one, the figure.
   if (options.long_variant) {
     EXPECT_GE(f.completeness, 0.9) << c.name;
   } else {

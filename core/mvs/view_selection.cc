@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numbers>
 #include <sstream>
+#include <unordered_map>
 #include <utility>
 
 namespace reconduit {
@@ -23,7 +24,11 @@ struct PairEvidence {
   double score = 0.0;
   std::vector<double> angles_deg;
   std::vector<double> scale_ratios;
+  // The shared points counted, with their weight w_angle * w_scale.
+  std::vector<std::pair<int, double>> points;
 };
+
+using EvidenceMap = std::map<std::pair<int, int>, PairEvidence>;  // (reference, neighbour)
 
 // Per image: camera centre, pose and focal, looked up once.
 struct ViewGeometry {
@@ -36,6 +41,50 @@ double ScaleWeight(double ratio) {
   if (ratio > 1.0) return 1.0 / ratio;  // The neighbour is coarser.
   if (ratio < 0.5) return 2.0 * ratio;  // Much finer: its detail is averaged away.
   return 1.0;
+}
+
+// What choosing `candidate` as a further source of `reference` adds, given how many chosen
+// sources see each point (view_selection.h: 1 for an unseen point, w 2^-c for one seen c times).
+double CoverageGain(const PairEvidence& candidate, const std::unordered_map<int, int>& times_seen) {
+  double gain = 0.0;
+  for (const auto& [point_id, weight] : candidate.points) {
+    const auto it = times_seen.find(point_id);
+    const int c = it == times_seen.end() ? 0 : it->second;
+    gain += c == 0 ? 1.0 : weight * std::ldexp(1.0, -c);
+  }
+  return gain;
+}
+
+// Reorders `neighbors` (best score first) so that its first `count` are chosen greedily for
+// coverage of `reference` (view_selection.h); the rest keep their order.
+void OrderForCoverage(int reference,
+                      int count,
+                      const EvidenceMap& evidence,
+                      std::vector<ViewNeighbor>* neighbors) {
+  const int n = static_cast<int>(neighbors->size());
+  count = std::min(count, n);
+  if (count <= 1) return;
+  std::unordered_map<int, int> times_seen;  // Point id -> chosen sources that see it.
+  std::vector<bool> chosen(n, false);
+  std::vector<ViewNeighbor> order;
+  for (int pick = 0; pick < count; ++pick) {
+    int best = -1;
+    double best_gain = -1.0;
+    for (int k = 0; k < n && pick > 0; ++k) {
+      if (chosen[k]) continue;
+      const double gain =
+          CoverageGain(evidence.at({reference, (*neighbors)[k].image_id}), times_seen);
+      if (gain > best_gain) best = k, best_gain = gain;  // Ties: the better scored.
+    }
+    if (pick == 0) best = 0;  // The best-scored neighbour first.
+    chosen[best] = true;
+    order.push_back((*neighbors)[best]);
+    for (const auto& entry : evidence.at({reference, (*neighbors)[best].image_id}).points)
+      ++times_seen[entry.first];
+  }
+  for (int k = 0; k < n; ++k)
+    if (!chosen[k]) order.push_back((*neighbors)[k]);
+  *neighbors = std::move(order);
 }
 
 }  // namespace
@@ -55,6 +104,8 @@ bool ViewSelectionOptions::Check(std::string* error) const {
       << max_triangulation_angle_deg;
   } else if (!(min_relative_score >= 0.0 && min_relative_score <= 1.0)) {
     m << "min_relative_score must be in [0, 1], got " << min_relative_score;
+  } else if (coverage_sources < 0 || coverage_sources > 32) {
+    m << "coverage_sources must be in [0, 32], got " << coverage_sources;
   }
   if (error) *error = m.str();
   return m.str().empty();
@@ -71,7 +122,7 @@ std::map<int, std::vector<ViewNeighbor>> SelectViews(const Reconstruction& model
   }
 
   constexpr double kDegPerRad = 180.0 / std::numbers::pi;
-  std::map<std::pair<int, int>, PairEvidence> evidence;  // (reference, neighbour)
+  EvidenceMap evidence;
   for (const auto& [point_id, point] : model.points) {
     const Eigen::Vector3d& x = point.xyz_in_world;
     for (std::size_t a = 0; a < point.observations.size(); ++a) {
@@ -96,6 +147,7 @@ std::map<int, std::vector<ViewNeighbor>> SelectViews(const Reconstruction& model
         PairEvidence& e =
             evidence[{point.observations[a].image_id, point.observations[b].image_id}];
         e.score += w_angle * ScaleWeight(ratio);
+        e.points.emplace_back(point_id, w_angle * ScaleWeight(ratio));
         e.angles_deg.push_back(angle);
         e.scale_ratios.push_back(ratio);
       }
@@ -121,6 +173,8 @@ std::map<int, std::vector<ViewNeighbor>> SelectViews(const Reconstruction& model
     if (neighbors.empty()) continue;
     const double cut = options.min_relative_score * neighbors.front().score;
     std::erase_if(neighbors, [&](const ViewNeighbor& n) { return n.score < cut; });
+    OrderForCoverage(id, std::min(options.coverage_sources, options.max_neighbors), evidence,
+                     &neighbors);
     if (static_cast<int>(neighbors.size()) > options.max_neighbors)
       neighbors.resize(options.max_neighbors);
   }

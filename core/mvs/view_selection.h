@@ -15,6 +15,21 @@
 //   finer one is penalised mildly, w_scale = 2 ratio below 0.5 (its pixels are averaged away).
 // Points are what the sparse stage reconstructed, so the score also measures overlap: photos
 // that share no points are never neighbours.
+//
+// Sources for coverage (`coverage_sources`): PatchMatch matches a reference only against its
+// first few neighbours, and the best-scored ones tend to see the same part of the reference
+// (wide baselines to the middle of the scene), while surface that only one other photo sees,
+// often a nearby one with a small (lower-scored) angle, then gets no depth. So the first
+// `coverage_sources` neighbours are chosen greedily: the best-scored first, then each time the
+// neighbour with the largest gain over the reference's sparse points it shares, where a point
+// no chosen neighbour sees yet counts 1 and one seen by c chosen neighbours counts its weight
+// w_angle * w_scale times 2^-c (a second source still helps the top-2 cost, a sixth little).
+// The rest follow by score. Measured on tests/dense_synthetic_test's long variant (box room,
+// 8 photos on a line, 7 neighbours each, 6 sources): completeness over surface seen by >= 2
+// photos 89.2 % (no noise) and 89.3 % (noise) by score alone, where each photo dropped its
+// nearest neighbour (the smallest angle), often the only other photo that sees the room's
+// corners; 94.6 % and 94.2 % with coverage (>= 3 photos: 97.3 -> 97.9 %, 97.5 -> 97.6 %).
+// The number of sources, hence PatchMatch's time, does not change.
 #ifndef RECONDUIT_CORE_MVS_VIEW_SELECTION_H_
 #define RECONDUIT_CORE_MVS_VIEW_SELECTION_H_
 
@@ -38,6 +53,9 @@ struct ViewSelectionOptions {
   double max_triangulation_angle_deg = 60.0;
   // Neighbours scoring below this share of the best neighbour's score are dropped. [0, 1]
   double min_relative_score = 0.05;
+  // The first this many neighbours are chosen for coverage of the reference (see above);
+  // 0: all by score. The dense stage sets it to its number of PatchMatch sources. [0, 32]
+  int coverage_sources = 6;
 
   // False, with a message naming the field, when a value is out of range.
   bool Check(std::string* error) const;

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <numbers>
 
 namespace reconduit {
@@ -22,8 +23,10 @@ Eigen::Vector3d CenterAt(double azimuth_deg, double distance) {
 
 // Points on a 1 m square grid patch of the plane z = 0 around the origin, seen by every
 // camera (all look at the origin with a wide field of view); each camera observes every point
-// in front of it at its exact projection.
-Reconstruction MakeModel(const std::vector<Eigen::Vector3d>& centers, int grid = 15) {
+// in front of it at its exact projection (and for which `sees`, when given, is true).
+Reconstruction MakeModel(const std::vector<Eigen::Vector3d>& centers,
+                         int grid = 15,
+                         const std::function<bool(int, const Eigen::Vector3d&)>& sees = {}) {
   Reconstruction model;
   model.cameras[0] = Camera::FromFocal(1000, 1000, 800.0);
   for (std::size_t i = 0; i < centers.size(); ++i) {
@@ -39,7 +42,7 @@ Reconstruction MakeModel(const std::vector<Eigen::Vector3d>& centers, int grid =
       std::vector<Observation> observations;
       for (auto& [id, image] : model.images) {
         const auto pixel = model.cameras[0].ImgFromCam(image.cam_from_world * x);
-        if (!pixel || !model.cameras[0].InImage(*pixel)) continue;
+        if (!pixel || !model.cameras[0].InImage(*pixel) || (sees && !sees(id, x))) continue;
         image.keypoints.push_back(*pixel);
         image.point_for_keypoint.push_back(kInvalidId);
         observations.push_back({id, static_cast<int>(image.keypoints.size()) - 1});
@@ -125,6 +128,36 @@ TEST(ViewSelection, NeedsSharedPointsAndHonoursTheLimits) {
   }
 }
 
+TEST(ViewSelection, ChoosesSourcesThatCoverTheReference) {
+  // 1 and 2 see the left half of the reference's points from wide angles (the best scores);
+  // 3 sees the right half, which no other photo sees, from a small angle (4 deg: a low score).
+  const auto sees = [](int camera, const Eigen::Vector3d& x) {
+    return camera == 0 || (camera == 3 ? x.x() >= 0.0 : x.x() < 0.0);
+  };
+  const Reconstruction model =
+      MakeModel({CenterAt(0, 5), CenterAt(20, 5), CenterAt(-20, 5), CenterAt(4, 5)}, 15, sees);
+  ViewSelectionOptions options;
+  options.coverage_sources = 0;  // By score alone: the two that see the same half.
+  const auto by_score = SelectViews(model, options);
+  ASSERT_EQ(by_score.at(0).size(), 3u);
+  EXPECT_EQ(by_score.at(0)[2].image_id, 3);
+  EXPECT_LT(by_score.at(0)[2].score, 0.3 * by_score.at(0)[1].score);
+
+  options.coverage_sources = 2;  // The best-scored, then the one that sees the rest.
+  const auto for_coverage = SelectViews(model, options);
+  ASSERT_EQ(for_coverage.at(0).size(), 3u);
+  EXPECT_EQ(for_coverage.at(0)[0].image_id, by_score.at(0)[0].image_id);
+  EXPECT_EQ(for_coverage.at(0)[1].image_id, 3);
+  EXPECT_EQ(for_coverage.at(0)[2].image_id, by_score.at(0)[1].image_id);
+  // The neighbours themselves and their figures are those of the score order.
+  EXPECT_EQ(for_coverage.at(0)[1].score, by_score.at(0)[2].score);
+
+  // When every neighbour sees everything, coverage is a tie broken by the weights: the order
+  // by score stays (the ring of PrefersUsefulAngles...: 14 deg before 4 deg).
+  const Reconstruction all = MakeModel({CenterAt(0, 5), CenterAt(4, 5), CenterAt(14, 5)});
+  EXPECT_EQ(Ids(SelectViews(all).at(0)), (std::vector<int>{2, 1}));
+}
+
 TEST(ViewSelection, ChecksItsOptions) {
   std::string error;
   ViewSelectionOptions options;
@@ -138,6 +171,10 @@ TEST(ViewSelection, ChecksItsOptions) {
   options = {};
   options.min_relative_score = 2.0;
   EXPECT_FALSE(options.Check(&error));
+  options = {};
+  options.coverage_sources = 33;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("coverage_sources"), std::string::npos);
   EXPECT_THROW(SelectViews(Reconstruction(), options), CheckError);
 }
 

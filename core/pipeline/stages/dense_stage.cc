@@ -29,7 +29,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// PatchMatch sources per photo: the best neighbours of view selection. Time grows linearly
+// PatchMatch sources per photo: the first neighbours of view selection, chosen for coverage of
+// the photo (ViewSelectionOptions::coverage_sources). Time grows linearly
 // with them; beyond six the top-2 cost rarely changes (COLMAP's default is 20 on a GPU, OpenMVS
 // uses up to 8 at half resolution on the CPU).
 constexpr int kMaxSources = 6;
@@ -48,7 +49,7 @@ struct ViewPlan {
   std::string name;
   Camera working;  // Pinhole at the working size.
   Rigid3d cam_from_world;
-  std::vector<ViewNeighbor> neighbors;  // Best first; the first kMaxSources are the sources.
+  std::vector<ViewNeighbor> neighbors;  // The first kMaxSources are the sources.
   double min_depth = 0.0, max_depth = 0.0;
   std::vector<DepthSeed> seeds;
 
@@ -108,7 +109,9 @@ void AddSeeds(const Reconstruction& model, const RegisteredImage& image, ViewPla
 }
 
 std::vector<ViewPlan> PlanViews(const Reconstruction& model, int max_side) {
-  const std::map<int, std::vector<ViewNeighbor>> neighbors = SelectViews(model);
+  ViewSelectionOptions selection;
+  selection.coverage_sources = kMaxSources;
+  const std::map<int, std::vector<ViewNeighbor>> neighbors = SelectViews(model, selection);
   std::vector<ViewPlan> plans;
   for (const auto& [id, image] : model.images) {
     ViewPlan plan;
