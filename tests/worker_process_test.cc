@@ -373,7 +373,7 @@ TEST_F(WorkerProcessTest, SigtermMidJobReleasesItAndTheNextWorkerFinishesIt) {
 
 // The stages a run can resume, in pipeline order (export and packaging always run again).
 const std::vector<std::string> kResumableStages = {"ingest", "features", "pairs", "matching",
-                                                   "sparse", "dense",    "mesh",     "texture"};
+                                                   "sparse", "dense",    "mesh",  "texture"};
 
 // One moment of a job's life at which its worker dies by SIGKILL.
 struct KillMoment {

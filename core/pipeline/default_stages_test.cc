@@ -15,9 +15,8 @@ std::vector<std::string> NamesOf(const std::vector<std::unique_ptr<Stage>>& stag
 }
 
 TEST(DefaultStages, UntilNamesTheWorkStagesOnly) {
-  EXPECT_THAT(PipelineStageNames(),
-              ElementsAre("ingest", "features", "pairs", "matching", "sparse", "dense", "mesh",
-                          "texture"));
+  EXPECT_THAT(PipelineStageNames(), ElementsAre("ingest", "features", "pairs", "matching", "sparse",
+                                                "dense", "mesh", "texture"));
 }
 
 TEST(DefaultStages, ExportAndPackagingAlwaysRunLast) {
@@ -38,9 +37,9 @@ TEST(DefaultStages, ExportAndPackagingAlwaysRunLast) {
 TEST(DefaultStages, UnknownStageListsTheKnownOnes) {
   auto stages = CreatePipelineStages("export");
   ASSERT_FALSE(stages.ok());
-  EXPECT_EQ(
-      stages.status().message(),
-      "unknown stage 'export'; stages: ingest, features, pairs, matching, sparse, dense, mesh, texture");
+  EXPECT_EQ(stages.status().message(),
+            "unknown stage 'export'; stages: ingest, features, pairs, matching, sparse, dense, "
+            "mesh, texture");
 }
 
 }  // namespace
