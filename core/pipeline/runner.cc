@@ -96,6 +96,14 @@ std::string_view StageStatusName(StageStatus status) {
   return "unknown";
 }
 
+StageResult StageResult::Skipped(std::string_view stage,
+                                 const std::string& reason,
+                                 nlohmann::json summary) {
+  LOG_WARNING << stage << ": skipped: " << reason;
+  summary["skipped_reason"] = reason;
+  return Success(std::move(summary));
+}
+
 nlohmann::json StageRecord::ToJson() const {
   return {{"name", name},
           {"status", StageStatusName(status)},

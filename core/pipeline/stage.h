@@ -76,6 +76,12 @@ struct StageResult {
   static StageResult Degenerate(std::string message) {
     return {StageStatus::kDegenerate, std::move(message), nlohmann::json::object(), std::nullopt};
   }
+  // A stage that could not do its work on these photos (dense matching with one camera, a mesh
+  // without dense points): a success whose summary's "skipped_reason" says why, which the
+  // report, the job status and the page show; the job goes on. Logs a warning naming `stage`.
+  static StageResult Skipped(std::string_view stage,
+                             const std::string& reason,
+                             nlohmann::json summary = nlohmann::json::object());
 };
 
 // A finished (or resumed) stage, as the runner records it in work/<stage>/stage.json.

@@ -328,20 +328,15 @@ nlohmann::json SparseToDense(const Reconstruction& model, const DenseCloud& clou
       {"median_relative", std::isfinite(median) ? nlohmann::json(median / scene_depth) : nullptr}};
 }
 
-StageResult Skipped(const std::string& reason, nlohmann::json summary = nlohmann::json::object()) {
-  LOG_WARNING << "dense: skipped: " << reason;
-  summary["skipped_reason"] = reason;
-  return StageResult::Success(std::move(summary));
-}
-
 }  // namespace
 
 StageResult DenseStage::Run(StageContext& context) const {
-  if (!context.options.dense_matching) return Skipped("turned off (option dense_matching)");
+  if (!context.options.dense_matching)
+    return StageResult::Skipped("dense", "turned off (option dense_matching)");
   auto model = ReadReconstructionJson(context.workspace.StageDir("sparse") / "model_0.json");
   if (!model.ok()) return StageResult::Failed(model.status().message());
   if (model->images.size() < 2)
-    return Skipped("fewer than two photos have cameras: nothing to match");
+    return StageResult::Skipped("dense", "fewer than two photos have cameras: nothing to match");
   auto images = ReadIngestedImages(context.workspace);
   if (!images.ok()) return StageResult::Failed(images.status().message());
   std::map<int, fs::path> paths;
@@ -358,7 +353,8 @@ StageResult DenseStage::Run(StageContext& context) const {
       WriteFileAtomically(context.stage_dir / "views.json", views.dump(1) + "\n");
   if (!written.ok()) return StageResult::Failed(written.message());
   if (matchable == 0)
-    return Skipped("no photo shares enough sparse points with another to match them");
+    return StageResult::Skipped("dense",
+                                "no photo shares enough sparse points with another to match them");
 
   fs::create_directories(context.stage_dir / "maps");
   context.progress.Restart(matchable + 1, "depth maps");
@@ -391,10 +387,11 @@ StageResult DenseStage::Run(StageContext& context) const {
        agreements.empty() ? nlohmann::json() : nlohmann::json(Median(agreements))},
       {"sparse_to_dense", SparseToDense(*model, fused.cloud)}};
   if (fused.cloud.size() == 0) {
-    return Skipped("no surface was confirmed by " +
-                       std::to_string(context.options.dense_min_views) +
-                       " photos (plain, textureless surfaces?)",
-                   std::move(summary));
+    return StageResult::Skipped("dense",
+                                "no surface was confirmed by " +
+                                    std::to_string(context.options.dense_min_views) +
+                                    " photos (plain, textureless surfaces?)",
+                                std::move(summary));
   }
   const Status ply = WriteDenseCloudPly(context.stage_dir / "dense.ply", fused.cloud);
   if (!ply.ok()) return StageResult::Failed(ply.message());

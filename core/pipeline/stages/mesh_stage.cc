@@ -16,12 +16,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-StageResult Skipped(const std::string& reason, nlohmann::json summary = nlohmann::json::object()) {
-  LOG_WARNING << "mesh: skipped: " << reason;
-  summary["skipped_reason"] = reason;
-  return StageResult::Success(std::move(summary));
-}
-
 // The photos of the cloud's visibility ids: views.json lists the registered photos in
 // increasing image id, the order the visibility refers to.
 Result<std::vector<SurfaceView>> SurfaceViews(const Workspace& workspace) {
@@ -75,9 +69,10 @@ nlohmann::json CleaningJson(const CleaningSummary& s) {
 }  // namespace
 
 StageResult MeshStage::Run(StageContext& context) const {
-  if (!context.options.mesh) return Skipped("turned off (option mesh)");
+  if (!context.options.mesh) return StageResult::Skipped("mesh", "turned off (option mesh)");
   const fs::path dense = context.workspace.StageDir("dense") / "dense.ply";
-  if (!fs::exists(dense)) return Skipped("no dense point cloud (the dense stage skipped)");
+  if (!fs::exists(dense))
+    return StageResult::Skipped("mesh", "no dense point cloud (the dense stage skipped)");
   Result<DenseCloud> read = ReadDenseCloudPly(dense);
   if (!read.ok()) return StageResult::Failed(read.status().message());
   DenseCloud cloud = std::move(read).value();
@@ -105,7 +100,8 @@ StageResult MeshStage::Run(StageContext& context) const {
   summary["faces"] = mesh.NumFaces();
   summary["vertices"] = mesh.NumVertices();
   if (mesh.NumFaces() == 0)
-    return Skipped("no surface: too few dense points support one", std::move(summary));
+    return StageResult::Skipped("mesh", "no surface: too few dense points support one",
+                                std::move(summary));
   const Status written = WriteMeshPly(context.stage_dir / "mesh.ply", mesh);
   if (!written.ok()) return StageResult::Failed(written.message());
   LOG_INFO << "mesh: " << mesh.NumFaces() << " faces, " << mesh.NumVertices() << " vertices ("

@@ -20,11 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-StageResult Skipped(const std::string& reason) {
-  LOG_WARNING << "texture: skipped: " << reason;
-  return StageResult::Success({{"skipped_reason", reason}});
-}
-
 // The registered photos as glTF camera nodes, in increasing image id (cameras.json's order).
 std::vector<GltfCameraView> GltfCameras(const Reconstruction& model) {
   std::vector<GltfCameraView> cameras;
@@ -118,9 +113,11 @@ nlohmann::json CompareWithPhotos(const TriangleMesh& mesh,
 }  // namespace
 
 StageResult TextureStage::Run(StageContext& context) const {
-  if (!context.options.texture) return Skipped("turned off (option texture)");
+  if (!context.options.texture)
+    return StageResult::Skipped("texture", "turned off (option texture)");
   const fs::path mesh_path = context.workspace.StageDir("mesh") / "mesh.ply";
-  if (!fs::exists(mesh_path)) return Skipped("no mesh (the mesh stage skipped)");
+  if (!fs::exists(mesh_path))
+    return StageResult::Skipped("texture", "no mesh (the mesh stage skipped)");
   auto mesh = ReadMeshPly(mesh_path);
   if (!mesh.ok()) return StageResult::Failed(mesh.status().message());
   auto model = ReadReconstructionJson(context.workspace.StageDir("sparse") / "model_0.json");
