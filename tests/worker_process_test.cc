@@ -560,7 +560,7 @@ TEST_F(WorkerProcessTest, KillDashNineAtElevenMomentsEveryJobFinishesOnce) {
     for (const std::string& name : listed) {
       EXPECT_EQ(name.find(".tmp"), std::string::npos) << "a leftover of the killed run: " << name;
     }
-    for (const char* expected : {"report.json", "cameras.json", "sparse.ply",
+    for (const char* expected : {"report.json", "cameras.json", "sparse.ply", "model.glb",
                                  "report/similarity.png", "report/match_graph.png"}) {
       EXPECT_TRUE(listed.count(expected)) << expected;
     }

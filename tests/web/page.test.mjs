@@ -153,7 +153,9 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   }
   assert.match(await page.textContent('#pictures'), /kermit010: depth \(red near, blue far/);
   const files = await page.$$eval('#files-list a', (links) => links.map((a) => a.textContent));
-  for (const name of ['cameras.json', 'sparse.ply', 'report.json']) assert.ok(files.includes(name));
+  for (const name of ['cameras.json', 'sparse.ply', 'report.json', 'dense.ply', 'model.glb']) {
+    assert.ok(files.includes(name), name);
+  }
   const download = await page.getAttribute('#job-actions a', 'href');
   const zip = await fetch(baseUrl + download);
   assert.equal(zip.status, 200);
