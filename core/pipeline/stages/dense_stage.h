@@ -40,7 +40,7 @@ class DenseStage : public Stage {
   double Weight() const override { return 5.0; }
   bool KeepsFinishedParts() const override { return true; }
   std::vector<std::string> OptionsUsed() const override {
-    return {"dense_matching", "dense_max_image_side", "dense_min_views"};
+    return {"dense_matching", "dense_max_image_side", "dense_min_views", "held_out_photos"};
   }
   StageResult Run(StageContext& context) const override;
 };

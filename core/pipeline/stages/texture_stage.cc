@@ -4,6 +4,7 @@
 #include "core/io/gltf.h"
 #include "core/io/mesh_ply.h"
 #include "core/io/reconstruction_json.h"
+#include "core/pipeline/held_out.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/texture/render_textured_mesh.h"
 #include "core/texture/texture_mesh.h"
@@ -88,6 +89,7 @@ constexpr int kCompareWidth = 1024;
 // well the model predicts a view it was not made from.
 nlohmann::json CompareWithPhotos(const TriangleMesh& mesh,
                                  const std::vector<TextureView>& views,
+                                 const std::vector<std::string>& held_out,
                                  const CancelToken& cancel) {
   nlohmann::json renders = nlohmann::json::array();
   for (const TextureView& view : views) {
@@ -104,10 +106,32 @@ nlohmann::json CompareWithPhotos(const TriangleMesh& mesh,
     const cv::Scalar sum = cv::sum(difference.setTo(cv::Scalar::all(0), render.coverage == 0));
     const double mad = covered > 0 ? (sum[0] + sum[1] + sum[2]) / (3.0 * covered) : NAN;
     renders.push_back({{"name", view.name},
+                       {"held_out", IsHeldOut(held_out, view.name)},
                        {"covered", static_cast<double>(covered) / render.coverage.total()},
                        {"mean_abs_diff", std::isfinite(mad) ? nlohmann::json(mad) : nullptr}});
   }
   return renders;
+}
+
+// Mean covered share and mean absolute difference of the renders of the photos that were
+// (held_out true) or were not left out of texturing; null when there are none.
+nlohmann::json MeanRender(const nlohmann::json& renders, bool held_out) {
+  double covered = 0.0, difference = 0.0;
+  int count = 0, with_difference = 0;
+  for (const nlohmann::json& render : renders) {
+    if (render["held_out"].get<bool>() != held_out) continue;
+    ++count;
+    covered += render["covered"].get<double>();
+    if (render["mean_abs_diff"].is_number()) {
+      difference += render["mean_abs_diff"].get<double>();
+      ++with_difference;
+    }
+  }
+  if (count == 0) return nullptr;
+  return {{"photos", count},
+          {"covered", covered / count},
+          {"mean_abs_diff",
+           with_difference > 0 ? nlohmann::json(difference / with_difference) : nullptr}};
 }
 
 }  // namespace
@@ -125,24 +149,32 @@ StageResult TextureStage::Run(StageContext& context) const {
   auto views = TextureViews(context.workspace, *model, context.options);
   if (!views.ok()) return StageResult::Failed(views.status().message());
 
+  const std::vector<std::string>& held_out = context.options.held_out_photos;
+  std::vector<TextureView> sources;
+  for (const TextureView& view : *views) {
+    if (!IsHeldOut(held_out, view.name)) sources.push_back(view);
+  }
+
   TextureOptions options;
   options.page_size = context.options.texture_page_size;
   options.num_threads = context.options.num_threads;
-  TextureResult textured = TextureMesh(*mesh, *views, options, &context.progress, context.cancel);
+  TextureResult textured = TextureMesh(*mesh, sources, options, &context.progress, context.cancel);
   context.progress.SetMessage("writing model.glb");
   GltfSummary gltf;
   const Status written = WriteModelGlb(context.stage_dir / "model.glb", textured.mesh,
                                        GltfCameras(*model), GltfOptions(), &gltf);
   if (!written.ok()) return StageResult::Failed(written.message());
   context.progress.SetMessage("comparing the model with the photos");
-  const nlohmann::json renders = CompareWithPhotos(textured.mesh, *views, context.cancel);
+  const nlohmann::json renders = CompareWithPhotos(textured.mesh, *views, held_out, context.cancel);
   LOG_INFO << "texture: " << textured.summary.num_charts << " charts on "
            << textured.summary.num_pages << " pages, " << textured.summary.num_unseen_faces
            << " of " << textured.summary.num_faces << " faces unseen; model.glb " << gltf.file_bytes
            << " bytes";
   return StageResult::Success({{"texture", TextureJson(textured.summary)},
                                {"model", GltfJson(gltf)},
-                               {"renders", renders}});
+                               {"renders", renders},
+                               {"in_sample", MeanRender(renders, false)},
+                               {"held_out", MeanRender(renders, true)}});
 }
 
 Result<std::vector<std::string>> ExportTexturedModel(const Workspace& workspace,
