@@ -131,13 +131,7 @@ class ModelView {
     });
     this.cameras = gltf.cameras.filter((c) => c.isPerspectiveCamera)
         .sort((a, b) => photoName(a).localeCompare(photoName(b), undefined, {numeric: true}));
-    const everything = meshBox.clone();
-    for (const camera of this.cameras) {
-      everything.expandByPoint(camera.getWorldPosition(new THREE.Vector3()));
-    }
-    if (everything.isEmpty()) everything.set(new THREE.Vector3(-1, -1, -1), new THREE.Vector3(1, 1, 1));
-    this.centre = (meshBox.isEmpty() ? everything : meshBox).getCenter(new THREE.Vector3());
-    this.radius = Math.max(everything.getBoundingSphere(new THREE.Sphere()).radius, 1e-6);
+    this.frame(meshBox);
     // Frusta a few percent of the scene: visible, without hiding the model.
     const depth = 0.07 * this.radius;
     for (const camera of this.cameras) {
@@ -149,6 +143,45 @@ class ModelView {
     this.model.updateMatrixWorld(true);
     this.overview();
     return {faces, cameras: this.cameras.map(photoName)};
+  }
+
+  // What the overview turns around and how far it stands back. The photos' subject is where
+  // their optical axes meet (least squares), when they do so in front of the cameras: a far
+  // background piece of the mesh (a façade behind a fountain) then neither moves the centre nor
+  // shrinks the model; the radius reaches the farthest camera. Otherwise (one camera, parallel
+  // axes, a panorama) the bounding box of the mesh and the cameras.
+  frame(meshBox) {
+    const centres = this.cameras.map((c) => c.getWorldPosition(new THREE.Vector3()));
+    const axes = this.cameras.map((c) => c.getWorldDirection(new THREE.Vector3()));
+    let centre = null;
+    if (this.cameras.length >= 2) {
+      // sum (I - d d^T) p = sum (I - d d^T) c over the cameras (centre c, unit direction d).
+      const a = new THREE.Matrix3().set(0, 0, 0, 0, 0, 0, 0, 0, 0);
+      const b = new THREE.Vector3();
+      for (let i = 0; i < centres.length; ++i) {
+        const d = axes[i], c = centres[i];
+        const m = new THREE.Matrix3().set(1 - d.x * d.x, -d.x * d.y, -d.x * d.z,
+                                          -d.y * d.x, 1 - d.y * d.y, -d.y * d.z,
+                                          -d.z * d.x, -d.z * d.y, 1 - d.z * d.z);
+        for (let k = 0; k < 9; ++k) a.elements[k] += m.elements[k];
+        b.add(c.clone().applyMatrix3(m));
+      }
+      if (Math.abs(a.determinant()) > 1e-6 * centres.length ** 3) {
+        const p = b.applyMatrix3(a.clone().invert());
+        const inFront = centres.filter((c, i) => p.clone().sub(c).dot(axes[i]) > 0).length;
+        if (inFront >= 0.75 * centres.length) centre = p;
+      }
+    }
+    if (centre) {
+      this.centre = centre;
+      this.radius = Math.max(...centres.map((c) => c.distanceTo(centre)), 1e-6);
+      return;
+    }
+    const everything = meshBox.clone();
+    for (const c of centres) everything.expandByPoint(c);
+    if (everything.isEmpty()) everything.set(new THREE.Vector3(-1, -1, -1), new THREE.Vector3(1, 1, 1));
+    this.centre = (meshBox.isEmpty() ? everything : meshBox).getCenter(new THREE.Vector3());
+    this.radius = Math.max(everything.getBoundingSphere(new THREE.Sphere()).radius, 1e-6);
   }
 
   // The whole scene (model and cameras), seen from the side the photos saw (+Z, a little above).
