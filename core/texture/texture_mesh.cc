@@ -3,6 +3,7 @@
 #include "core/texture/atlas_packing.h"
 #include "core/texture/face_labeling.h"
 #include "core/texture/rasterize.h"
+#include "core/texture/seam_blending.h"
 #include "core/util/logging.h"
 #include "core/util/parallel.h"
 #include "core/util/timer.h"
@@ -446,6 +447,8 @@ bool TextureOptions::Check(std::string* error) const {
     message << "max_smoothing_sweeps must be >= 0, got " << max_smoothing_sweeps;
   } else if (!(max_megatexels > 0.0)) {
     message << "max_megatexels must be > 0, got " << max_megatexels;
+  } else if (seam_blend_rings < 0 || seam_blend_rings > 16) {
+    message << "seam_blend_rings must be in [0, 16], got " << seam_blend_rings;
   } else if (!(seam_outlier_threshold > 0.0)) {
     message << "seam_outlier_threshold must be > 0, got " << seam_outlier_threshold;
   } else if (!(unseen_color.minCoeff() >= 0.0 && unseen_color.maxCoeff() <= 255.0)) {
@@ -515,6 +518,15 @@ TextureResult TextureMesh(const TriangleMesh& mesh,
 
   summary.num_pages = static_cast<int>(plan.pages.size());
   result.mesh.texture_pages = std::move(plan.pages);
+  if (options.blend_seams) {
+    step.Restart();
+    const texture_internal::SeamBlendSummary blend =
+        texture_internal::BlendSeams(charts.face_chart, options.seam_blend_rings, &result.mesh);
+    summary.seam_border_vertices = blend.border_vertices;
+    summary.seam_vertex_difference = blend.vertex_difference;
+    summary.seam_blended_faces = blend.blended_faces;
+    summary.blending_seconds = step.ElapsedSeconds();
+  }
   summary.total_seconds = total.ElapsedSeconds();
   if (progress != nullptr) progress->Finish();
   LOG_INFO << "texture: " << summary.num_faces << " faces, " << summary.num_textured_faces
@@ -525,7 +537,9 @@ TextureResult TextureMesh(const TriangleMesh& mesh,
            << summary.num_seam_samples << " samples; " << summary.visibility_seconds
            << " s visibility, " << summary.labelling_seconds << " s labelling, "
            << summary.atlas_seconds << " s atlas, " << summary.bake_seconds << " s baking, "
-           << summary.levelling_seconds << " s levelling";
+           << summary.levelling_seconds << " s levelling; blending " << summary.seam_blended_faces
+           << " faces at " << summary.seam_border_vertices << " border vertices (difference "
+           << summary.seam_vertex_difference << ") in " << summary.blending_seconds << " s";
   return result;
 }
 

@@ -20,7 +20,7 @@
 //     price is that an irregular chart carries the unused photo pixels of its bounding box.
 //  4. Seam levelling: one additive colour offset per chart and channel, by robust (Huber) least
 //     squares over colour samples on both sides of the chart borders (LevelSeams in
-//     texture_mesh.cc). No blending along the borders yet.
+//     texture_mesh.cc), then blending along the borders (seam_blending.h).
 //  5. Faces no view sees point at a small block of `unseen_color` and are counted.
 //
 // Memory: visibility needs only the cameras and a float z-buffer of at most
@@ -91,6 +91,12 @@ struct TextureOptions {
   // Seam samples whose colours differ by more than this (grey levels, any channel) are left
   // out of the levelling: misregistered or occluded borders, not exposure differences.
   double seam_outlier_threshold = 60.0;
+  // Blends colours along chart borders after the levelling: both sides pulled to a common
+  // colour at the border vertices, the pull fading over seam_blend_rings rings of vertices into
+  // each chart (seam_blending.h).
+  bool blend_seams = true;
+  // [0, 16]; 0 blends within the faces that touch a border only.
+  int seam_blend_rings = 2;
   // BGR colour of faces no view sees.
   Eigen::Vector3d unseen_color = Eigen::Vector3d(128.0, 128.0, 128.0);
   // Threads over views (see EffectiveNumThreads).
@@ -113,11 +119,17 @@ struct TextureSummary {
   // before and after levelling.
   double seam_difference_before = 0.0;
   double seam_difference_after = 0.0;
+  // Blending: vertices where charts meet, their mean absolute difference from the mean of their
+  // charts' colours before blending (after levelling), and the faces whose texels changed.
+  int seam_border_vertices = 0;
+  double seam_vertex_difference = 0.0;
+  int seam_blended_faces = 0;
   double visibility_seconds = 0.0;
   double labelling_seconds = 0.0;
   double atlas_seconds = 0.0;  // Charts, texture coordinates and packing.
   double bake_seconds = 0.0;   // Loading photos and copying their rectangles.
   double levelling_seconds = 0.0;
+  double blending_seconds = 0.0;
   double total_seconds = 0.0;
 };
 
