@@ -44,12 +44,16 @@ nlohmann::json TextureJson(const TextureSummary& s) {
           {"pages", s.num_pages},
           {"seam_difference_before", s.seam_difference_before},
           {"seam_difference_after", s.seam_difference_after},
+          {"seam_border_vertices", s.seam_border_vertices},
+          {"seam_vertex_difference", s.seam_vertex_difference},
+          {"seam_blended_faces", s.seam_blended_faces},
           {"seconds",
            {{"visibility", s.visibility_seconds},
             {"labelling", s.labelling_seconds},
             {"atlas", s.atlas_seconds},
             {"bake", s.bake_seconds},
-            {"levelling", s.levelling_seconds}}}};
+            {"levelling", s.levelling_seconds},
+            {"blending", s.blending_seconds}}}};
 }
 
 // The photos as TextureView, each loading its original pixels when asked.
