@@ -130,8 +130,9 @@ std::vector<OptionSpec> MakeSpecs() {
       "texture_page_size", &PipelineOptions::texture_page_size, 256, 16384,
       "Largest side of a texture page, pixels; more pages rather than one huge image. 4096 is "
       "what phone browsers still display."));
-  specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
-                                "Threads for parallel stages; 0 uses every core."));
+  specs.push_back(IntegerOption(
+      "num_threads", &PipelineOptions::num_threads, 0, 256,
+      "Threads for parallel stages; 0 uses every core. A worker grants at most its --threads."));
   return specs;
 }
 
