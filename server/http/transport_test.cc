@@ -317,7 +317,7 @@ TEST_F(TransportTest, SinkErrorEndsTheRequest) {
       Fetch(port_, "POST", "/upload", {{"Content-Type", "multipart/form-data; boundary=XyZ"}},
             "--XyZ\r\nno colon\r\n\r\nx\r\n--XyZ--");
   EXPECT_EQ(response.status, 400u);
-  EXPECT_EQ(nlohmann::json::parse(response.body)["error"]["code"], "invalid_argument");
+  EXPECT_EQ(nlohmann::json::parse(response.body)["error"]["code"], "bad_request");
   // Truncated multipart: the body ends before the closing boundary.
   response =
       Fetch(port_, "POST", "/upload", {{"Content-Type", "multipart/form-data; boundary=XyZ"}},
@@ -553,6 +553,27 @@ TEST_F(TransportTest, OneAddressCannotTakeEveryConnection) {
   }
   TestClient again(port_);
   EXPECT_EQ(again.Request("GET", "/items/5").status, 200u);
+}
+
+// Issue 12: "gzip, chunked" was read as chunked with the gzip coding ignored.
+TEST_F(TransportTest, TransferCodingsOtherThanChunkedGet501) {
+  Start();
+  for (const char* coding : {"gzip, chunked", "deflate", "gzip"}) {
+    TestClient client(port_);
+    ASSERT_TRUE(client.Write(std::string("POST /echo HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: ") +
+                             coding + "\r\n\r\n5\r\nhello\r\n0\r\n\r\n"));
+    const TestResponse response = client.Read();
+    EXPECT_EQ(response.status, 501u) << coding << " " << response.error << " " << response.body;
+    EXPECT_EQ(response.Header("X-Content-Type-Options"), "nosniff");
+  }
+  TestClient client(port_);
+  ASSERT_TRUE(
+      client.Write("POST /echo HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: "
+                   "Chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n"));
+  const TestResponse plain = client.Read();
+  ASSERT_EQ(plain.status, 200u) << plain.error;
+  EXPECT_EQ(nlohmann::json::parse(plain.body)["body"], "hello");
+  EXPECT_EQ(plain.Header("X-Content-Type-Options"), "nosniff");
 }
 
 TEST(HttpServerOptionsTest, ChecksTheNewLimits) {
