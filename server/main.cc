@@ -95,6 +95,13 @@ reconduit::config::ProgramSettings ServerProgram(Config* config) {
        "Largest request line plus headers, in bytes.")
       ("max-connections", po::value(&http.max_connections)->value_name("N")->default_value(http.max_connections),
        "Concurrent connections; more are answered 503 with Retry-After.")
+      ("max-connections-per-address",
+       po::value(&http.max_connections_per_address)->value_name("N")->default_value(http.max_connections_per_address),
+       "Concurrent connections from one client address (>= 1); more are answered "
+       "503 with Retry-After (GET /healthz is still answered).")
+      ("upload-threads", po::value(&http.blocking_threads)->value_name("N")->default_value(http.blocking_threads),
+       "Threads that store and check uploads (disk writes, zip extraction, photo checks, fsync) "
+       "off the I/O threads, 1-64.")
       ("header-timeout",
        po::value(&config->header_timeout_s)->value_name("SECONDS")->default_value(config->header_timeout_s),
        "Seconds allowed for a request header (also the keep-alive idle time).")
@@ -135,6 +142,8 @@ std::string OptionOfField(const std::string& message) {
       {"port", "port"},
       {"num_threads", "threads"},
       {"max_connections", "max-connections"},
+      {"max_connections_per_address", "max-connections-per-address"},
+      {"blocking_threads", "upload-threads"},
       {"max_header_bytes", "max-header-bytes"},
       {"max_body_bytes", "max-body-bytes"},
       {"max_upload_bytes", "max-upload-bytes"},

@@ -413,6 +413,30 @@ TEST_F(ApiTest, RefusesBadInputWithTheRightStatusAndLeavesNothingBehind) {
                    MakeZip(dir_ / "text.zip", {{"a.jpg", good}, {"readme.txt", "text"}}));
   EXPECT_EQ(response.status, 415u);
   EXPECT_NE(ErrorMessage(response).find("readme.txt"), std::string::npos) << response.body;
+  // What Windows and macOS put in zips is skipped and listed (issue 12), not refused.
+  response = Fetch(port_, "POST", "/api/v1/jobs", zip_headers,
+                   MakeZip(dir_ / "real.zip", {{"set/a.jpg", good},
+                                               {"set/Thumbs.db", "thumbnails"},
+                                               {"set/.DS_Store", "finder"},
+                                               {"__MACOSX/set/._a.jpg", "fork"},
+                                               {"set/older.zip", "PK\x03\x04"}}));
+  ASSERT_EQ(response.status, 201u) << response.body;
+  ++created;
+  EXPECT_EQ(Json(response)["images"]["accepted"], 1);
+  EXPECT_EQ(Json(response)["skipped"],
+            (nlohmann::json{"Thumbs.db", ".DS_Store", "._a.jpg", "older.zip"}));
+
+  // Every 400 says bad_request, query parameters too; a malformed multipart body says so once.
+  response = Fetch(port_, "GET", "/api/v1/jobs?limit=0");
+  EXPECT_EQ(response.status, 400u);
+  EXPECT_EQ(Json(response)["error"]["code"], "bad_request");
+  response = Fetch(port_, "POST", "/api/v1/jobs", MultipartHeaders(),
+                   "--" + std::string(kBoundary) + "\r\nno colon here\r\n\r\nx\r\n");
+  EXPECT_EQ(response.status, 400u);
+  const std::string message = ErrorMessage(response);
+  EXPECT_NE(message.find("malformed multipart body"), std::string::npos) << message;
+  EXPECT_EQ(message.find("malformed multipart body"), message.rfind("malformed multipart body"))
+      << message;
 
   // Nothing else disturbed: exactly the accepted uploads became jobs; no temporary files.
   EXPECT_EQ(Json(Fetch(port_, "GET", "/api/v1/jobs"))["total"], created);
@@ -495,6 +519,11 @@ TEST_F(ApiTest, ServesResultsAndEnforcesTheJobStates) {
       Fetch(port_, "GET", base + "/result.zip", {{"Range", "bytes=20000-"}});
   EXPECT_EQ(outside.status, 416u);
   EXPECT_EQ(outside.Header("Content-Range"), "bytes */10000");
+  // If-Range with the current tag made weak: the whole file (strong comparison only).
+  const TestResponse weak = Fetch(port_, "GET", base + "/result.zip",
+                                  {{"Range", "bytes=0-9"}, {"If-Range", "W/\"" + sha + "\""}});
+  EXPECT_EQ(weak.status, 200u);
+  EXPECT_EQ(weak.body.size(), zip_bytes.size());
   // If-Range with a stale tag: the whole file.
   EXPECT_EQ(
       Fetch(port_, "GET", base + "/result.zip", {{"Range", "bytes=0-9"}, {"If-Range", "\"stale\""}})

@@ -255,6 +255,16 @@ Result<std::vector<InputImage>> PhotosFromRecords(const std::vector<JobImageReco
   return photos;
 }
 
+int JobThreads(int requested, int worker_limit) {
+  const int limit = worker_limit > 0
+                        ? worker_limit
+                        : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (requested > limit) {
+    LOG_INFO << "the job asks for " << requested << " threads; the worker allows " << limit;
+  }
+  return requested <= 0 ? limit : std::min(requested, limit);
+}
+
 JobCounts CountsOfStage(const StageRecord& record) {
   JobCounts counts;
   if (record.status != StageStatus::kSuccess) return counts;
@@ -451,9 +461,7 @@ class JobRun {
     Result<PipelineOptions> parsed = ParsePipelineOptions(job_.options);
     if (!parsed.ok()) return Fail("", "invalid options: " + parsed.status().message());
     *options = *parsed;
-    if (options_.default_num_threads > 0 && !job_.options.contains("num_threads")) {
-      options->num_threads = options_.default_num_threads;
-    }
+    options->num_threads = JobThreads(options->num_threads, options_.default_num_threads);
 
     const Result<std::vector<JobImageRecord>> images = store_.ListImages(job_.id);
     if (!images.ok()) {

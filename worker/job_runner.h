@@ -68,8 +68,10 @@ struct JobRunnerOptions {
   std::chrono::milliseconds cancel_check_interval{1'000};
   // Throttling of progress writes and log-line events.
   ProgressSinkOptions sink;
-  // num_threads for jobs whose options do not set it; 0 = all cores. Lets an operator run
-  // several workers on one machine without each using every core.
+  // The most threads a job may use (0 = all cores), also what jobs get whose options do not set
+  // num_threads (or set 0). A job may ask for fewer, never more: a client cannot take more of
+  // the machine than the operator allows. Lets an operator run several workers on one machine
+  // without each using every core.
   int default_num_threads = 0;
   // The stages to run; empty for CreatePipelineStages() (the full pipeline).
   StageListFactory make_stages;
@@ -122,6 +124,10 @@ Result<std::vector<InputImage>> PhotosFromRecords(const std::vector<JobImageReco
 // registered, points, faces and models from any stage) and, for packaging, the number of
 // files of its archive. Empty for a stage that did not succeed or has none.
 JobCounts CountsOfStage(const StageRecord& record);
+
+// The threads a job runs with: what its options ask for (`requested`, 0 = as many as allowed),
+// never more than the worker's limit (`worker_limit`, 0 = the machine's cores).
+int JobThreads(int requested, int worker_limit);
 
 class JobRunner {
  public:

@@ -210,6 +210,32 @@ TEST_F(JobRunnerTest, InvalidOptionsFailNamingTheField) {
   EXPECT_THAT(Get(unknown).error, HasSubstr("quality"));
 }
 
+// A job may ask for fewer threads than the worker's --threads, never more (issue 12: a client
+// asked for 256).
+TEST_F(JobRunnerTest, JobThreadsAreCappedByTheWorker) {
+  const std::map<int, int> expected = {{256, 2}, {3, 2}, {1, 1}, {0, 2}};
+  for (const auto& [requested, granted] : expected) {
+    const std::string id = CreateJob({{"num_threads", requested}});
+    ToyPipeline toy;
+    JobRunner runner(*store_, Options(MakeToyPipeline(toy)));  // default_num_threads = 2
+    ASSERT_EQ(runner.Run(Claim(id)).outcome, JobRunOutcome::kSucceeded);
+    EXPECT_EQ(toy.runs->num_threads, granted) << "asked for " << requested;
+  }
+  const std::string unset = CreateJob();
+  ToyPipeline toy;
+  JobRunner runner(*store_, Options(MakeToyPipeline(toy)));
+  ASSERT_EQ(runner.Run(Claim(unset)).outcome, JobRunOutcome::kSucceeded);
+  EXPECT_EQ(toy.runs->num_threads, 2);
+}
+
+TEST(JobThreads, AllCoresWhenTheWorkerSetsNoLimit) {
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  EXPECT_EQ(JobThreads(256, 0), cores);
+  EXPECT_EQ(JobThreads(0, 0), cores);
+  EXPECT_EQ(JobThreads(1, 0), 1);
+  EXPECT_EQ(JobThreads(8, 4), 4);
+}
+
 TEST_F(JobRunnerTest, CancelRequestedMidRunEndsCanceled) {
   const std::string id = CreateJob();
   ToyPipeline toy;

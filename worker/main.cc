@@ -107,8 +107,8 @@ config::ProgramSettings WorkerProgram(Flags* flags) {
       ("poll", po::value(&flags->poll_seconds)->value_name("SECONDS")->default_value(flags->poll_seconds),
        "Seconds between looks at an empty queue (env RECONDUIT_POLL_SECONDS).")
       ("threads", po::value(&flags->threads)->value_name("N")->default_value(flags->threads),
-       "Threads per job when the job's options do not set num_threads (env "
-       "RECONDUIT_WORKER_THREADS; 0 = all cores, at most 256).")
+       "Threads per job, the most a job may use: a job's num_threads option may ask for "
+       "fewer, never more (env RECONDUIT_WORKER_THREADS; 0 = all cores, at most 256).")
       ("until", po::value(&flags->until)->value_name("STAGE"),
        "Run the stages up to this one, then pack the results (env RECONDUIT_UNTIL_STAGE; "
        "default: every stage). For deployments that want only the early stages; jobs still "

@@ -31,6 +31,7 @@ class ToyStage : public Stage {
   std::string_view Title() const override { return "Toy work"; }
   StageResult Run(StageContext& context) const override {
     ++toy_.runs->middle;
+    toy_.runs->num_threads = context.options.num_threads;
     if (toy_.on_run) toy_.on_run();
     std::ofstream(context.stage_dir / "toy.txt") << "toy output\n";
     switch (toy_.behaviour) {

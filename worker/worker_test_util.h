@@ -46,6 +46,8 @@ std::vector<std::string> WriteBoxRoomPhotos(const std::filesystem::path& dir,
 struct ToyStageRuns {
   std::atomic<int> ingest{0};
   std::atomic<int> middle{0};
+  // The options' num_threads the middle stage last ran with.
+  std::atomic<int> num_threads{-1};
 };
 
 // What the middle toy stage does.

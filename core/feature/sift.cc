@@ -103,9 +103,17 @@ cv::Mat ToRootSiftBytes(const cv::Mat& sift_descriptors) {
 }
 
 FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options) {
+  return ExtractSiftFeatures(image, options, image.size());
+}
+
+FeatureSet ExtractSiftFeatures(const cv::Mat& image,
+                               const SiftOptions& options,
+                               cv::Size original_size) {
   std::string error;
   THROW_CHECK(options.Check(&error)) << error;
   THROW_CHECK(!image.empty() && image.depth() == CV_8U) << "an 8-bit image is required";
+  THROW_CHECK(original_size.width >= image.cols && original_size.height >= image.rows)
+      << "the original must not be smaller than the image";
 
   cv::Mat gray;
   if (image.channels() == 3) {
@@ -122,8 +130,8 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options)
     cv::resize(gray, working, cv::Size(), scale, scale, cv::INTER_AREA);
   }
   // The working size is rounded to whole pixels: use the actual per-axis factors.
-  const double sx = static_cast<double>(working.cols) / gray.cols;
-  const double sy = static_cast<double>(working.rows) / gray.rows;
+  const double sx = static_cast<double>(working.cols) / original_size.width;
+  const double sy = static_cast<double>(working.rows) / original_size.height;
 
   cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, options.octave_layers, options.contrast_threshold,
                                             options.edge_threshold, 1.6);
@@ -145,8 +153,8 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options)
   }
 
   FeatureSet features;
-  features.image_width = gray.cols;
-  features.image_height = gray.rows;
+  features.image_width = original_size.width;
+  features.image_height = original_size.height;
   features.keypoints.reserve(keypoints.size());
   for (const cv::KeyPoint& kp : keypoints) {
     Keypoint out;

@@ -45,6 +45,11 @@ struct SiftOptions {
 // Detects and describes features in `image` (8-bit, grey or BGR, original resolution).
 // Deterministic for the same input.
 FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options);
+// The same for `image`, a downscaled copy of a photo of `original_size` pixels (read at its
+// working size): keypoints and image size are reported in the original's pixels.
+FeatureSet ExtractSiftFeatures(const cv::Mat& image,
+                               const SiftOptions& options,
+                               cv::Size original_size);
 
 // Chooses at most `max_features` of `candidates` (any order): the strongest
 // (1 - spread_fraction) by response, then round-robin the best remaining one per grid cell.

@@ -250,3 +250,32 @@ TEST(ExtractSiftFeatures, RejectsEmptyImage) {
 
 }  // namespace
 }  // namespace reconduit
+
+namespace reconduit {
+namespace {
+
+// A photo read at its working size (image_reader.h) and described with its original size gives
+// the features of the full photo: same size, keypoints in the original's pixels.
+TEST(ExtractSiftFeatures, WorkingSizeCopyReportsOriginalPixels) {
+  const cv::Mat full = TexturedImage(1600, 1200, 11);
+  SiftOptions options;
+  options.max_image_side = 400;
+  const FeatureSet reference = ExtractSiftFeatures(full, options);
+  cv::Mat working;
+  cv::resize(full, working, cv::Size(400, 300), 0, 0, cv::INTER_AREA);
+  const FeatureSet features = ExtractSiftFeatures(working, options, full.size());
+  EXPECT_EQ(features.image_width, 1600);
+  EXPECT_EQ(features.image_height, 1200);
+  ASSERT_GT(features.size(), 100u);
+  // The same detection: every keypoint lies where the full photo's does (same working image).
+  ASSERT_EQ(features.size(), reference.size());
+  for (std::size_t i = 0; i < features.size(); ++i) {
+    EXPECT_NEAR(features.keypoints[i].x, reference.keypoints[i].x, 1e-3);
+    EXPECT_NEAR(features.keypoints[i].y, reference.keypoints[i].y, 1e-3);
+    EXPECT_NEAR(features.keypoints[i].scale, reference.keypoints[i].scale, 1e-3);
+  }
+  EXPECT_THROW(ExtractSiftFeatures(full, options, cv::Size(100, 100)), CheckError);
+}
+
+}  // namespace
+}  // namespace reconduit

@@ -15,6 +15,28 @@ std::string SizeText(int width, int height) {
   return std::to_string(width) + "x" + std::to_string(height) + " pixels";
 }
 
+// The JPEG scale-on-decode factor for an image wanted at its working size: the largest of 8, 4
+// and 2 whose reduced image (each side divided, rounded up, as libjpeg does) still covers the
+// working size, so that only a downscale remains; 1 for other formats, at full size, or when
+// no pixels are wanted (InspectImage proves the full image decodes).
+int DecodeReduction(const ImageInfo& info, bool want_pixels) {
+  if (!want_pixels || info.format != ImageFormat::kJpeg) return 1;
+  for (const int factor : {8, 4, 2}) {
+    const int width = (info.width + factor - 1) / factor;
+    const int height = (info.height + factor - 1) / factor;
+    if (width >= info.working_width && height >= info.working_height) return factor;
+  }
+  return 1;
+}
+
+int DecodeFlags(int reduction) {
+  const int colour = reduction == 8   ? cv::IMREAD_REDUCED_COLOR_8
+                     : reduction == 4 ? cv::IMREAD_REDUCED_COLOR_4
+                     : reduction == 2 ? cv::IMREAD_REDUCED_COLOR_2
+                                      : cv::IMREAD_COLOR;
+  return colour | cv::IMREAD_IGNORE_ORIENTATION;
+}
+
 // Runs every header check on `path` (InspectImageHeader), then decodes it. The pixels
 // (oriented, at working size) are put in *pixels when it is non-null. Returns the record; its
 // status says whether it was accepted.
@@ -35,10 +57,13 @@ ImageRecord LoadImage(const std::filesystem::path& path,
     return record;
   };
 
+  // A JPEG much larger than its working size is decoded at 1/2, 1/4 or 1/8 scale (libjpeg
+  // scales in the inverse DCT): a 100 Mpx photo wanted at 3200 px never exists at full size.
+  const int reduction = DecodeReduction(info, pixels != nullptr);
   cv::Mat stored;
   try {
     const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data());
-    stored = cv::imdecode(buffer, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+    stored = cv::imdecode(buffer, DecodeFlags(reduction));
   } catch (const cv::Exception& e) {
     return refuse(Status::InvalidArgument("the " + std::string(ImageFormatName(info.format)) +
                                           " data could not be decoded (" + e.err + ")"));
@@ -50,8 +75,8 @@ ImageRecord LoadImage(const std::filesystem::path& path,
   }
   // The header's stored size: orientations 5..8 swapped it to give info's displayed size.
   const bool swapped = info.orientation >= 5 && info.orientation <= 8;
-  const int declared_width = swapped ? info.height : info.width;
-  const int declared_height = swapped ? info.width : info.height;
+  const int declared_width = ((swapped ? info.height : info.width) + reduction - 1) / reduction;
+  const int declared_height = ((swapped ? info.width : info.height) + reduction - 1) / reduction;
   if (stored.cols != declared_width || stored.rows != declared_height) {
     return refuse(Status::InvalidArgument(
         "the decoded image is " + SizeText(stored.cols, stored.rows) + " but the header says " +
@@ -75,10 +100,13 @@ ImageRecord InspectImage(const std::filesystem::path& path, const ImageReaderOpt
   return LoadImage(path, options, nullptr);
 }
 
-Result<cv::Mat> ReadImage(const std::filesystem::path& path, const ImageReaderOptions& options) {
+Result<cv::Mat> ReadImage(const std::filesystem::path& path,
+                          const ImageReaderOptions& options,
+                          ImageInfo* info) {
   cv::Mat pixels;
   ImageRecord record = LoadImage(path, options, &pixels);
   if (!record.status.ok()) return record.status;
+  if (info != nullptr) *info = record.info;
   return pixels;
 }
 

@@ -35,7 +35,14 @@ ImageRecord InspectImage(const std::filesystem::path& path, const ImageReaderOpt
 // Reads one photo as 8-bit, 3-channel BGR (grey and 16-bit images are converted, alpha is
 // dropped), oriented by its EXIF tag and downscaled to options.max_side when set. Refuses the
 // same files as InspectImage, with the same reasons. Throws CheckError on invalid options.
-Result<cv::Mat> ReadImage(const std::filesystem::path& path, const ImageReaderOptions& options);
+// A JPEG at least twice the working size in both directions is decoded at 1/2, 1/4 or 1/8
+// scale (libjpeg's scale-on-decode), then resized: the full-size pixels never exist in
+// memory. Other formats are decoded at full size, then resized.
+// When `info` is non-null it receives the photo's description (width and height as
+// displayed, before downscaling).
+Result<cv::Mat> ReadImage(const std::filesystem::path& path,
+                          const ImageReaderOptions& options,
+                          ImageInfo* info = nullptr);
 
 // Returns `image` rotated/flipped so that a stored image with EXIF orientation `orientation`
 // (1..8) appears upright. Orientations 5..8 swap width and height. Out-of-range values are

@@ -2,9 +2,12 @@
 
 #include "core/image/exif_test_util.h"
 #include "core/image/test_util.h"
+#include "core/util/timer.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cstdint>
@@ -236,6 +239,65 @@ TEST_F(ImageReaderTest, ReadImageDownscalesToWorkingSize) {
   ASSERT_TRUE(grey_image.ok());
   EXPECT_EQ(grey_image->type(), CV_8UC3);
   EXPECT_EQ(grey_image->size(), cv::Size(320, 240));
+}
+
+// A smooth picture (small as a JPEG) of the given size.
+cv::Mat SmoothPicture(int width, int height) {
+  cv::Mat small = testing_util::TestPattern(64, 48);
+  cv::Mat picture;
+  cv::resize(small, picture, cv::Size(width, height), 0, 0, cv::INTER_LINEAR);
+  return picture;
+}
+
+// A JPEG much larger than its working size is decoded at reduced scale, then resized: the
+// result has the working size and the pixels of a full decode plus resize, also when EXIF
+// rotates it.
+TEST_F(ImageReaderTest, LargeJpegDecodedAtReducedScaleMatchesFullDecode) {
+  const cv::Mat picture = SmoothPicture(2000, 1200);
+  testing_util::WriteBytes(dir_ / "big.jpg", testing_util::Encode(picture, ".jpg"));
+  WriteJpegWithExif(dir_ / "turned.jpg", testing_util::Encode(picture, ".jpg"), 6);
+  options_.max_side = 450;  // 1/4 scale (500 x 300) still covers 450 x 270.
+  ImageInfo info;
+  const Result<cv::Mat> image = ReadImage(dir_ / "big.jpg", options_, &info);
+  ASSERT_TRUE(image.ok()) << image.status();
+  EXPECT_EQ(image->size(), cv::Size(450, 270));
+  EXPECT_EQ(info.width, 2000);
+  EXPECT_EQ(info.height, 1200);
+  cv::Mat full = cv::imread((dir_ / "big.jpg").string(), cv::IMREAD_COLOR);
+  cv::Mat expected;
+  cv::resize(full, expected, cv::Size(450, 270), 0, 0, cv::INTER_AREA);
+  cv::Mat difference;
+  cv::absdiff(*image, expected, difference);
+  EXPECT_LT(cv::mean(difference)[0], 2.0);
+
+  const Result<cv::Mat> turned = ReadImage(dir_ / "turned.jpg", options_, &info);
+  ASSERT_TRUE(turned.ok()) << turned.status();
+  EXPECT_EQ(turned->size(), cv::Size(270, 450));
+  EXPECT_EQ(info.width, 1200);
+  // Sizes that are not multiples of the factor round up as libjpeg does.
+  const cv::Mat odd = SmoothPicture(1001, 803);
+  testing_util::WriteBytes(dir_ / "odd.jpg", testing_util::Encode(odd, ".jpg"));
+  options_.max_side = 250;  // 1/4: 251 x 201.
+  const Result<cv::Mat> odd_image = ReadImage(dir_ / "odd.jpg", options_);
+  ASSERT_TRUE(odd_image.ok()) << odd_image.status();
+  EXPECT_EQ(odd_image->size(), WorkingSize(1001, 803, 250));
+}
+
+// Issue 12: reading a 48 Mpx JPEG at 1000 px must not hold its full-size pixels (144 MB).
+TEST_F(ImageReaderTest, LargeJpegAtWorkingSizeNeverHoldsTheFullPixels) {
+  {
+    const cv::Mat picture = SmoothPicture(8000, 6000);
+    testing_util::WriteBytes(dir_ / "huge.jpg", testing_util::Encode(picture, ".jpg"));
+  }
+  options_.max_side = 1000;
+  const std::int64_t before = CurrentMemoryBytes();
+  const StagePeakMemory peak;
+  if (!peak.Own()) GTEST_SKIP() << "no per-stretch peak memory here (/proc/self/clear_refs)";
+  const Result<cv::Mat> image = ReadImage(dir_ / "huge.jpg", options_);
+  ASSERT_TRUE(image.ok()) << image.status();
+  EXPECT_EQ(image->size(), cv::Size(1000, 750));
+  const std::int64_t grown = peak.PeakBytes() - before;
+  EXPECT_LT(grown, 60 << 20) << "peak grew by " << (grown >> 20) << " MiB";
 }
 
 TEST(ApplyExifOrientation, AllEightOrientations) {

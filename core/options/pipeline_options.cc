@@ -170,8 +170,9 @@ std::vector<OptionSpec> MakeSpecs() {
       "Keep the intermediate files (features, matches, depth maps) after the job succeeds, "
       "e.g. to rerun later stages with other options without starting over. By default they "
       "are removed once result.zip is written."));
-  specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
-                                "Threads for parallel stages; 0 uses every core."));
+  specs.push_back(IntegerOption(
+      "num_threads", &PipelineOptions::num_threads, 0, 256,
+      "Threads for parallel stages; 0 uses every core. A worker grants at most its --threads."));
   return specs;
 }
 

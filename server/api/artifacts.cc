@@ -66,7 +66,7 @@ Response ResultZip(ApiServices* services, RequestContext& context, std::string_v
   if (const std::optional<std::string_view> header = context.Header("Range"); header) {
     // If-Range: serve the range only when the client's copy is still current.
     const std::optional<std::string_view> if_range = context.Header("If-Range");
-    if (!if_range || EntityTagListMatches(*if_range, etag)) range = ParseRangeHeader(*header, size);
+    if (!if_range || IfRangeMatches(*if_range, etag)) range = ParseRangeHeader(*header, size);
   }
   if (range.kind == RangeRequest::Kind::kUnsatisfiable) {
     Response response =

@@ -38,6 +38,20 @@ std::size_t Utf8SequenceLength(std::string_view s, std::size_t i) {
 
 bool IsControl(unsigned char c) { return c < 0x20 || c == 0x7F; }
 
+// True for a valid UTF-8 sequence that is a C1 control (U+0080-U+009F) or a bidirectional
+// control: U+061C, U+200E, U+200F, U+202A-U+202E (U+202E, RIGHT-TO-LEFT OVERRIDE, makes
+// "photo\u202Egpj.exe" display as "photoexe.jpg") and U+2066-U+2069.
+bool IsInvisibleControl(std::string_view sequence) {
+  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(sequence[k]); };
+  if (sequence.size() == 2) {
+    return (byte(0) == 0xC2 && byte(1) <= 0x9F) || (byte(0) == 0xD8 && byte(1) == 0x9C);
+  }
+  if (sequence.size() != 3 || byte(0) != 0xE2) return false;
+  if (byte(1) == 0x80)
+    return byte(2) == 0x8E || byte(2) == 0x8F || (byte(2) >= 0xAA && byte(2) <= 0xAE);
+  return byte(1) == 0x81 && byte(2) >= 0xA6 && byte(2) <= 0xA9;
+}
+
 }  // namespace
 
 std::string SanitizeDisplayName(std::string_view client_name, std::string_view fallback) {
@@ -53,7 +67,9 @@ std::string SanitizeDisplayName(std::string_view client_name, std::string_view f
       ++i;
       continue;
     }
-    if (!(length == 1 && IsControl(static_cast<unsigned char>(base[i])))) {
+    const std::string_view sequence = base.substr(i, length);
+    if (!(length == 1 && IsControl(static_cast<unsigned char>(base[i]))) &&
+        !IsInvisibleControl(sequence)) {
       if (clean.size() + length > kMaxDisplayNameBytes) break;
       clean.append(base.substr(i, length));
     }

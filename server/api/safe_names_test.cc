@@ -33,6 +33,29 @@ TEST(SanitizeDisplayName, RemovesControlsAndBadUtf8) {
   EXPECT_EQ(SanitizeDisplayName("  spaced.jpg  ", "x"), "spaced.jpg");
 }
 
+// Issue 12: U+202E (right-to-left override) made "photo\u202Egpj.exe" display as
+// "photoexe.jpg"; bidirectional and C1 controls are removed, other characters kept.
+TEST(SanitizeDisplayName, RemovesBidirectionalAndC1Controls) {
+  EXPECT_EQ(SanitizeDisplayName("photo\xE2\x80\xAEgpj.exe", "x"), "photogpj.exe");
+  EXPECT_EQ(SanitizeDisplayName("\xE2\x80\xAA\xE2\x80\xAB\xE2\x80\xAC\xE2\x80\xAD"
+                                "a"
+                                "\xE2\x80\x8E\xE2\x80\x8F\xD8\x9C.jpg",
+                                "x"),
+            "a.jpg");
+  EXPECT_EQ(SanitizeDisplayName("\xE2\x81\xA6"
+                                "b\xE2\x81\xA7\xE2\x81\xA8\xE2\x81\xA9.jpg",
+                                "x"),
+            "b.jpg");
+  EXPECT_EQ(SanitizeDisplayName("c\xC2\x85\xC2\x9F.jpg", "x"), "c.jpg");
+  EXPECT_EQ(SanitizeDisplayName("\xE2\x80\xAE", "fallback"), "fallback");
+  // Neighbours of the controls stay: U+2010 (hyphen), U+2070, U+00A0, Arabic letters.
+  EXPECT_EQ(SanitizeDisplayName("a\xE2\x80\x90"
+                                "b\xE2\x81\xB0\xC2\xA0\xD8\xA8.jpg",
+                                "x"),
+            "a\xE2\x80\x90"
+            "b\xE2\x81\xB0\xC2\xA0\xD8\xA8.jpg");
+}
+
 TEST(SanitizeDisplayName, LimitsTheLengthAtACharacterBoundary) {
   std::string long_name;
   for (int i = 0; i < 150; ++i) long_name += "\xc3\xa9";  // 300 bytes of 'é'.

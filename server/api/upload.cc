@@ -132,6 +132,13 @@ class UploadSession {
     return std::nullopt;
   }
 
+  // Names of archive entries that were skipped (Thumbs.db, nested zips...), listed in the
+  // answer as display names.
+  void SetSkipped(const std::vector<std::string>& names) {
+    skipped_.clear();
+    for (const std::string& name : names) skipped_.push_back(SanitizeDisplayName(name, "entry"));
+  }
+
   // Starts the next photo; `client_name` is display-only.
   std::optional<Response> BeginPhoto(std::string_view client_name) {
     if (static_cast<int>(photos_.size()) >= services_->limits.max_photos) {
@@ -272,11 +279,13 @@ class UploadSession {
     services_->uploads.accepted_total.fetch_add(1);
     LOG_INFO << "upload " << upload_id_ << ": job " << created->id << " queued with "
              << (photos_.size() - reasons.size()) << " photo(s)"
-             << (reasons.empty() ? "" : ", " + std::to_string(reasons.size()) + " rejected") << ", "
-             << total_bytes << " bytes";
+             << (reasons.empty() ? "" : ", " + std::to_string(reasons.size()) + " rejected")
+             << (skipped_.empty() ? "" : ", " + std::to_string(skipped_.size()) + " skipped")
+             << ", " << total_bytes << " bytes";
 
     nlohmann::json body = JobToJson(*created, NowMs());
     body["images"] = ImagesToJson(job.images);
+    if (!skipped_.empty()) body["skipped"] = skipped_;
     Response response = Response::Json(body, HttpStatus::created);
     response.SetHeader("Location", JobPath(created->id));
     return response;
@@ -311,6 +320,7 @@ class UploadSession {
   const std::string upload_id_;
   std::vector<Photo> photos_;
   std::optional<nlohmann::json> options_;
+  std::vector<std::string> skipped_;
   int fd_ = -1;
   std::string head_;
   bool committed_ = false;
@@ -336,14 +346,14 @@ class MultipartUploadSink : public BodySink {
     const Status status = parser_.Feed(chunk);
     if (refusal_) return std::move(refusal_);
     if (!status.ok()) {
-      return Refuse(HttpStatus::bad_request, "malformed multipart body: " + status.message());
+      return Refuse(HttpStatus::bad_request, status.message());
     }
     return std::nullopt;
   }
 
   Response OnComplete(RequestContext&) override {
     if (Status status = parser_.Finish(); !status.ok()) {
-      return Refuse(HttpStatus::bad_request, "malformed multipart body: " + status.message());
+      return Refuse(HttpStatus::bad_request, status.message());
     }
     return session_->Commit();
   }
@@ -447,8 +457,11 @@ class ZipUploadSink : public BodySink {
         ZipPhotoArchive::Open(session_->temp_dir() / "upload.zip", limits);
     if (!archive.ok()) return ZipRefusal(archive.status());
     if ((*archive)->photos().empty()) {
-      return Refuse(HttpStatus::bad_request, "the zip archive contains no photos");
+      return Refuse(HttpStatus::bad_request,
+                    "the zip archive contains no photos" +
+                        std::string((*archive)->skipped().empty() ? "" : " (only skipped files)"));
     }
+    session_->SetSkipped((*archive)->skipped());
     for (const ZipPhotoEntry& entry : (*archive)->photos()) {
       if (auto refusal = session_->BeginPhoto(entry.name); refusal) return std::move(*refusal);
       std::optional<Response> refusal;

@@ -15,7 +15,9 @@
 //      as it arrives (nothing is held in memory); its first bytes must be JPEG, PNG or TIFF
 //      (415 naming the file); the photo count (413) and per-photo size (413) are enforced, the
 //      options part is validated as soon as it ends (400 naming the field). A zip body goes to
-//      <data>/tmp/<upload-id>/upload.zip and is checked and extracted the same way at the end.
+//      <data>/tmp/<upload-id>/upload.zip and is checked and extracted the same way at the end;
+//      entries that are not photos but what real archives carry (Thumbs.db, .DS_Store,
+//      __MACOSX/, nested zips; zip_reader.h) are skipped and listed in the answer's `skipped`.
 //   3. At the end: every photo is renamed to its generated name (0001.jpg, 0002.png, ... by
 //      detected type) and checked from its header (photo_check.h: format, header size limits,
 //      truncation, EXIF; no decoding on this I/O thread: ingest refuses undecodable photos);

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <sstream>
 #include <sys/stat.h>
 
@@ -42,7 +43,12 @@ bool IsSkippedZipEntry(std::string_view name) {
   if (name.rfind("__MACOSX/", 0) == 0) return true;
   const std::size_t slash = name.rfind('/');
   const std::string_view base = slash == std::string_view::npos ? name : name.substr(slash + 1);
-  return !base.empty() && base.front() == '.';
+  if (!base.empty() && base.front() == '.') return true;
+  std::string lower(base);
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return lower == "thumbs.db" || lower == "desktop.ini" ||
+         (lower.size() > 4 && lower.compare(lower.size() - 4, 4, ".zip") == 0);
 }
 
 ZipPhotoArchive::ZipPhotoArchive(std::unique_ptr<Handle> handle) : handle_(std::move(handle)) {}
@@ -67,7 +73,9 @@ Result<std::unique_ptr<ZipPhotoArchive>> ZipPhotoArchive::Open(const std::filesy
                                      " entries; at most " + std::to_string(limits.max_entries) +
                                      " are accepted");
   }
+  archive->max_total_bytes_ = limits.max_total_bytes;
   std::uint64_t total = 0;
+  std::uint64_t total_compressed = 0;
   for (zip_int64_t i = 0; i < count; ++i) {
     const auto index = static_cast<zip_uint64_t>(i);
     zip_stat_t stat;
@@ -95,7 +103,10 @@ Result<std::unique_ptr<ZipPhotoArchive>> ZipPhotoArchive::Open(const std::filesy
                                        " is not a regular file");
       }
     }
-    if (IsSkippedZipEntry(name)) continue;
+    if (IsSkippedZipEntry(name)) {
+      if (name.back() != '/') archive->skipped_.push_back(name);
+      continue;
+    }
     if ((stat.valid & ZIP_STAT_ENCRYPTION_METHOD) != 0 && stat.encryption_method != ZIP_EM_NONE) {
       return Status::InvalidArgument("zip entry " + QuoteForMessage(name) +
                                      " is encrypted; encrypted archives are not accepted");
@@ -130,7 +141,17 @@ Result<std::unique_ptr<ZipPhotoArchive>> ZipPhotoArchive::Open(const std::filesy
                                          ":1 (decompression bomb?)");
       }
     }
+    total_compressed += stat.comp_size;
     archive->photos_.push_back({index, name, stat.size});
+  }
+  if (total > limits.ratio_min_bytes) {
+    const double ratio = static_cast<double>(total) /
+                         static_cast<double>(std::max<std::uint64_t>(1, total_compressed));
+    if (ratio > limits.max_ratio) {
+      return Status::ResourceExhausted("the zip archive's photos have a compression ratio of " +
+                                       FormatRatio(ratio) + ":1 together, over the limit of " +
+                                       FormatRatio(limits.max_ratio) + ":1 (decompression bomb?)");
+    }
   }
   return archive;
 }
@@ -154,6 +175,12 @@ Status ZipPhotoArchive::Extract(const ZipPhotoEntry& entry,
     }
     if (n == 0) break;
     produced += static_cast<std::uint64_t>(n);
+    extracted_ += static_cast<std::uint64_t>(n);
+    if (extracted_ > max_total_bytes_) {
+      status = Status::ResourceExhausted("the zip archive extracts to more than " +
+                                         std::to_string(max_total_bytes_) + " bytes");
+      break;
+    }
     if (produced > entry.size) {
       status = Status::ResourceExhausted("zip entry " + QuoteForMessage(entry.name) +
                                          " extracts to more than its declared " +

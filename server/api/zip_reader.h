@@ -9,13 +9,19 @@
 //     attributes) are refused; directories are skipped;
 //   * encrypted entries are refused;
 //   * decompression bombs: the number of entries, each photo's declared size, the sum of the
-//     declared sizes and each photo's compression ratio are limited. Photos barely compress
-//     (JPEG, PNG and most TIFFs are compressed already), so a high ratio means a bomb.
+//     declared sizes, each photo's compression ratio (over ratio_min_bytes) and the ratio of
+//     the whole archive (declared over compressed sizes of all photos, once they sum to more
+//     than ratio_min_bytes: many small entries of zeros are a bomb too) are limited. Photos
+//     barely compress (JPEG, PNG and most TIFFs are compressed already), so a high ratio means
+//     a bomb.
 // While extracting, bytes are counted: an entry that produces more than its declared size is
-// refused, so a lying central directory cannot get past the limits either.
+// refused, and so is an archive whose entries together produce more than max_total_bytes, so
+// a lying central directory cannot get past the limits either.
 //
-// Skipped without complaint: directory entries, macOS metadata ("__MACOSX/...") and hidden
-// files (base name starting with '.', such as ".DS_Store" or "._IMG_1.jpg").
+// Skipped (listed in skipped(), except directories): directory entries, macOS metadata
+// ("__MACOSX/..."), hidden files (base name starting with '.', such as ".DS_Store" or
+// "._IMG_1.jpg"), Windows' "Thumbs.db" and "desktop.ini", and nested archives ("*.zip"):
+// what real zips from Windows and macOS carry.
 //
 // Errors: kInvalidArgument (not a zip, corrupt, unsafe entry, encrypted), kResourceExhausted
 // (a size limit; the upload answers 413). Messages name the entry.
@@ -69,6 +75,8 @@ class ZipPhotoArchive {
 
   // The photo entries in archive order.
   const std::vector<ZipPhotoEntry>& photos() const { return photos_; }
+  // The names of the files that were skipped (not directories), in archive order.
+  const std::vector<std::string>& skipped() const { return skipped_; }
 
   // Decompresses one entry, passing its bytes to `sink` in pieces of at most 64 KiB; stops at
   // the first non-OK Status from the sink and returns it. kResourceExhausted when the entry
@@ -82,9 +90,13 @@ class ZipPhotoArchive {
 
   std::unique_ptr<Handle> handle_;
   std::vector<ZipPhotoEntry> photos_;
+  std::vector<std::string> skipped_;
+  std::uint64_t max_total_bytes_ = 0;
+  std::uint64_t extracted_ = 0;  // Bytes produced by Extract so far, all entries.
 };
 
-// True for entries the archive skips: directories, "__MACOSX/..." and hidden base names.
+// True for entries the archive skips: directories, "__MACOSX/...", hidden base names,
+// Thumbs.db, desktop.ini and nested "*.zip" archives (names compared case-insensitively).
 bool IsSkippedZipEntry(std::string_view name);
 
 }  // namespace reconduit::server

@@ -130,6 +130,40 @@ TEST_F(ZipReaderTest, RefusesDecompressionBombsByRatio) {
       << archive.status();
 }
 
+// Issue 12: entries under ratio_min_bytes skipped the ratio check, so many small entries of
+// zeros (300 x 8 KiB here; 342 KB writing 300 MB in the report) got through.
+TEST_F(ZipReaderTest, RefusesManySmallHighlyCompressedEntriesByTheWholeRatio) {
+  std::vector<Entry> entries;
+  for (int i = 0; i < 300; ++i) {
+    entries.push_back({"zeros_" + std::to_string(i) + ".jpg", std::string(8 << 10, '\0')});
+  }
+  Result<std::unique_ptr<ZipPhotoArchive>> archive = Open(entries);
+  ASSERT_FALSE(archive.ok());
+  EXPECT_EQ(archive.status().code(), StatusCode::kResourceExhausted);
+  EXPECT_NE(archive.status().message().find("together"), std::string::npos) << archive.status();
+
+  // Under ratio_min_bytes in all, small well-compressing files are still fine.
+  entries.resize(100);
+  EXPECT_TRUE(Open(entries).ok());
+}
+
+// Issue 12: what Windows and macOS put in zips is skipped and listed, not refused.
+TEST_F(ZipReaderTest, SkipsAndListsThumbnailsMetadataAndNestedZips) {
+  Result<std::unique_ptr<ZipPhotoArchive>> archive = Open({{"photos/", ""},
+                                                           {"photos/a.jpg", "photo"},
+                                                           {"photos/Thumbs.db", "thumbnails"},
+                                                           {"desktop.ini", "[.ShellClassInfo]"},
+                                                           {"photos/.DS_Store", "finder"},
+                                                           {"more/older.ZIP", "PK nested"},
+                                                           {"__MACOSX/photos/._a.jpg", "fork"}});
+  ASSERT_TRUE(archive.ok()) << archive.status();
+  ASSERT_EQ((*archive)->photos().size(), 1u);
+  EXPECT_EQ((*archive)->photos()[0].name, "photos/a.jpg");
+  EXPECT_EQ((*archive)->skipped(),
+            (std::vector<std::string>{"photos/Thumbs.db", "desktop.ini", "photos/.DS_Store",
+                                      "more/older.ZIP", "__MACOSX/photos/._a.jpg"}));
+}
+
 TEST_F(ZipReaderTest, RefusesDeclaredSizesOverTheLimits) {
   ZipLimits limits;
   limits.max_total_bytes = 1500;
@@ -170,6 +204,11 @@ TEST(IsSkippedZipEntry, DirectoriesMacMetadataAndHiddenFiles) {
   EXPECT_TRUE(IsSkippedZipEntry("__MACOSX/._a.jpg"));
   EXPECT_TRUE(IsSkippedZipEntry("photos/.DS_Store"));
   EXPECT_TRUE(IsSkippedZipEntry("._a.jpg"));
+  EXPECT_TRUE(IsSkippedZipEntry("photos/thumbs.DB"));
+  EXPECT_TRUE(IsSkippedZipEntry("Desktop.ini"));
+  EXPECT_TRUE(IsSkippedZipEntry("inner.zip"));
+  EXPECT_FALSE(IsSkippedZipEntry(".zip/a.jpg"));
+  EXPECT_FALSE(IsSkippedZipEntry("zip"));
   EXPECT_FALSE(IsSkippedZipEntry("photos/a.jpg"));
   EXPECT_FALSE(IsSkippedZipEntry("a.b.jpg"));
 }

@@ -82,6 +82,13 @@ std::string ContentRangeHeader(const FileSlice& slice, std::uint64_t size) {
          std::to_string(slice.offset + slice.length - 1) + "/" + std::to_string(size);
 }
 
+bool IfRangeMatches(std::string_view header, std::string_view etag) {
+  const std::string_view presented = Trim(header);
+  const std::string_view current = Trim(etag);
+  const bool weak = presented.rfind("W/", 0) == 0 || current.rfind("W/", 0) == 0;
+  return !weak && presented.size() >= 2 && presented.front() == '"' && presented == current;
+}
+
 bool EntityTagListMatches(std::string_view header, std::string_view etag) {
   const std::string_view wanted = StripWeak(Trim(etag));
   std::string_view rest = header;

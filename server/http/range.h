@@ -43,6 +43,11 @@ std::string ContentRangeHeader(const FileSlice& slice, std::uint64_t size);
 // ignored. "*" matches any existing representation.
 bool EntityTagListMatches(std::string_view header, std::string_view etag);
 
+// True when an If-Range header value is `etag` by the strong comparison RFC 9110 13.1.5
+// requires: both tags strong (no W/ prefix) and identical. A date, a list or a weak tag never
+// matches, so the client gets the whole representation.
+bool IfRangeMatches(std::string_view header, std::string_view etag);
+
 }  // namespace reconduit::server
 
 #endif  // RECONDUIT_SERVER_HTTP_RANGE_H_

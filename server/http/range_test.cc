@@ -65,5 +65,19 @@ TEST(EntityTagListMatches, WeakComparisonOverLists) {
   EXPECT_FALSE(EntityTagListMatches("", etag));
 }
 
+// Issue 12: a weak W/ tag satisfied If-Range; RFC 9110 13.1.5 requires a strong match.
+TEST(IfRangeMatches, StrongComparisonOnly) {
+  const std::string etag = "\"abc\"";
+  EXPECT_TRUE(IfRangeMatches("\"abc\"", etag));
+  EXPECT_TRUE(IfRangeMatches("  \"abc\" ", etag));
+  EXPECT_FALSE(IfRangeMatches("W/\"abc\"", etag));
+  EXPECT_FALSE(IfRangeMatches("\"abc\"", "W/\"abc\""));
+  EXPECT_FALSE(IfRangeMatches("\"abcd\"", etag));
+  EXPECT_FALSE(IfRangeMatches("*", etag));
+  EXPECT_FALSE(IfRangeMatches("\"x\", \"abc\"", etag));
+  EXPECT_FALSE(IfRangeMatches("Tue, 01 Dec 2026 10:00:00 GMT", etag));
+  EXPECT_FALSE(IfRangeMatches("", etag));
+}
+
 }  // namespace
 }  // namespace reconduit::server

@@ -157,7 +157,10 @@ HttpStatus HttpStatusFor(StatusCode code) {
 Response ResponseFromStatus(const Status& status, int retry_after_seconds) {
   const HttpStatus http_status = HttpStatusFor(status.code());
   if (status.ok()) return Response(http_status);
-  const std::string code = ToLowerAscii(StatusCodeName(status.code()));
+  // Every 400 says bad_request, whatever produced it (query parameters, options, bodies).
+  const std::string code = status.code() == StatusCode::kInvalidArgument
+                               ? std::string("bad_request")
+                               : ToLowerAscii(StatusCodeName(status.code()));
   if (http_status == HttpStatus::internal_server_error) {
     return ErrorResponse(http_status, "internal server error", code);
   }

@@ -132,9 +132,10 @@ Response RetryLaterResponse(HttpStatus status, std::string_view message, int ret
 HttpStatus HttpStatusFor(StatusCode code);
 
 // The JSON error for a non-OK Status: status from HttpStatusFor, code = the StatusCode name in
-// snake_case ("invalid_argument", "failed_precondition", ...), message = status.message().
-// Internal errors (500) do not echo the message, which may describe server internals; the
-// caller should log it. kResourceExhausted gets `Retry-After: retry_after_seconds`.
+// snake_case ("failed_precondition", ...; kInvalidArgument gives "bad_request" like every 400),
+// message = status.message(). Internal errors (500) do not echo the message, which may describe
+// server internals; the caller should log it. kResourceExhausted gets `Retry-After:
+// retry_after_seconds`.
 Response ResponseFromStatus(const Status& status, int retry_after_seconds = 5);
 
 // The MIME type for a file name by its extension (".html" -> "text/html; charset=utf-8",

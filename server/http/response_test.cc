@@ -111,7 +111,7 @@ TEST(ResponseFromStatus, CarriesCodeAndMessage) {
 
   response = ResponseFromStatus(Status::InvalidArgument("bad option 'focal'"));
   EXPECT_EQ(response.status(), HttpStatus::bad_request);
-  EXPECT_EQ(Body(response)["error"]["code"], "invalid_argument");
+  EXPECT_EQ(Body(response)["error"]["code"], "bad_request");
 }
 
 TEST(ResponseFromStatus, ResourceExhaustedSaysWhenToRetry) {

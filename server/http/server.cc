@@ -14,6 +14,7 @@
 #include <boost/asio/signal_set.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
+#include <boost/asio/thread_pool.hpp>
 #include <boost/asio/use_awaitable.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
@@ -28,6 +29,8 @@
 #include <mutex>
 #include <random>
 #include <thread>
+#include <type_traits>
+#include <unordered_map>
 #include <unordered_set>
 #include <variant>
 
@@ -42,12 +45,16 @@ namespace {
 
 // Size of the buffer a request body is read into; also the largest piece a BodySink receives.
 constexpr std::size_t kBodyChunkBytes = 64 * 1024;
+// Body bytes collected before a BodySink is called on the blocking pool.
+constexpr std::size_t kSinkBatchBytes = 1024 * 1024;
 // After an early error response on a connection whose request body was not read, the server
 // reads and discards this much for at most kLingerTime before closing, so the client sees the
 // response instead of a connection reset.
 constexpr std::uint64_t kLingerMaxBytes = 4 * 1024 * 1024;
 constexpr std::chrono::milliseconds kLingerTime{2000};
-constexpr std::chrono::milliseconds kRejectTimeout{5000};
+// A connection refused for the connection caps may still ask for an always-reachable path
+// (/healthz): its request header is awaited this long before the 503 is sent.
+constexpr std::chrono::milliseconds kRejectHeaderTimeout{1000};
 
 auto Awaitable(beast::error_code& ec) { return net::redirect_error(net::use_awaitable, ec); }
 
@@ -71,6 +78,20 @@ bool IsAcceptableRequestId(std::string_view id) {
     if (!ok) return false;
   }
   return true;
+}
+
+// True for a Transfer-Encoding value that is exactly "chunked" (any case, white space around).
+bool IsPlainChunked(std::string_view value) {
+  while (!value.empty() && (value.front() == ' ' || value.front() == '\t')) value.remove_prefix(1);
+  while (!value.empty() && (value.back() == ' ' || value.back() == '\t')) value.remove_suffix(1);
+  return EqualsIgnoreCase(value, "chunked");
+}
+
+// `value` in double quotes for a message, cut at 64 bytes, printable ASCII only.
+std::string QuoteForLog(std::string_view value) {
+  std::string quoted = "\"";
+  for (const char c : value.substr(0, 64)) quoted += (c >= 0x20 && c < 0x7F && c != '"') ? c : '?';
+  return quoted + "\"";
 }
 
 bool IsParseError(const beast::error_code& ec) {
@@ -104,6 +125,10 @@ bool HttpServerOptions::Check(std::string* error) const {
   if (port < 0 || port > 65535) return fail("port must be in [0, 65535]");
   if (num_threads < 1 || num_threads > 64) return fail("num_threads must be in [1, 64]");
   if (max_connections < 1) return fail("max_connections must be >= 1");
+  if (max_connections_per_address < 1) return fail("max_connections_per_address must be >= 1");
+  if (blocking_threads < 1 || blocking_threads > 64) {
+    return fail("blocking_threads must be in [1, 64]");
+  }
   if (max_header_bytes < 1024) return fail("max_header_bytes must be >= 1024");
   if (max_body_bytes < 1) return fail("max_body_bytes must be >= 1");
   if (max_upload_bytes < 1) return fail("max_upload_bytes must be >= 1");
@@ -123,8 +148,14 @@ bool HttpServerOptions::Check(std::string* error) const {
 // One accepted connection. The session coroutine and the shutdown code share it; `idle` is only
 // touched on the connection's strand.
 struct Connection {
-  explicit Connection(tcp::socket socket) : stream(std::move(socket)) {}
+  explicit Connection(tcp::socket socket) : stream(std::move(socket)) {
+    beast::error_code ec;
+    const tcp::endpoint remote = stream.socket().remote_endpoint(ec);
+    address = ec ? std::string("unknown") : remote.address().to_string();
+  }
   beast::tcp_stream stream;
+  // The client's IP address ("unknown" when the socket could not tell).
+  std::string address;
   // True while waiting for the next request header (nothing in flight).
   bool idle = false;
 };
@@ -134,6 +165,7 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
   Impl(HttpServerOptions options, Router router)
       : options_(std::move(options)),
         router_(std::move(router)),
+        blocking_pool_(static_cast<std::size_t>(options_.blocking_threads)),
         control_(net::make_strand(ioc_)),
         acceptor_(control_),
         signals_(control_) {}
@@ -165,7 +197,22 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
   net::awaitable<void> AcceptLoop();
   net::awaitable<void> WaitForShutdown();
   net::awaitable<void> Session(std::shared_ptr<Connection> connection);
-  net::awaitable<void> RejectBusy(tcp::socket socket);
+  net::awaitable<void> RejectBusy(std::shared_ptr<Connection> connection);
+  // Registers an accepted connection unless a connection cap is reached.
+  bool TryAddConnection(const std::shared_ptr<Connection>& connection);
+  void RemoveConnection(const std::shared_ptr<Connection>& connection);
+  // Runs `step` on the blocking pool and resumes on the calling coroutine's executor with what
+  // it returned. `step` must not throw (wrap it in Guarded) and its result must be
+  // default-constructible.
+  template <class Step>
+  net::awaitable<std::invoke_result_t<Step&>> OnBlockingPool(Step& step);
+  // Gives `data` to the sink on the blocking pool, in pieces of at most kBodyChunkBytes; returns
+  // the sink's early response (or a 500 when it threw).
+  net::awaitable<std::optional<Response>> FeedSink(const RequestContext& context,
+                                                   std::unique_ptr<BodySink>& sink,
+                                                   std::string_view data);
+  // Destroys a sink (which may remove a folder of temporary files) on the blocking pool.
+  net::awaitable<void> DropSink(const RequestContext& context, std::unique_ptr<BodySink>& sink);
   // Everything decided from the header alone: target, token, size limits, route. Returns the
   // refusal to send, or nullopt with `dispatch` filled in.
   std::optional<Response> Admit(RequestContext& context, Dispatch* dispatch);
@@ -209,6 +256,9 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
   HttpServerOptions options_;
   Router router_;
   net::io_context ioc_;
+  // Runs what may block on the disk (the streaming routes' handlers and sinks), so that the I/O
+  // threads only move bytes.
+  net::thread_pool blocking_pool_;
   // Serialises the acceptor, the signal set and the shutdown sequence.
   net::strand<net::io_context::executor_type> control_;
   tcp::acceptor acceptor_;
@@ -220,7 +270,22 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
   std::atomic<bool> shutdown_requested_{false};
   mutable std::mutex connections_mutex_;
   std::unordered_set<std::shared_ptr<Connection>> connections_;
+  // Open connections per client address (entries with a count of zero are erased).
+  std::unordered_map<std::string, int> connections_per_address_;
+  // Refused connections still being answered; beyond max_connections they are closed at once.
+  std::atomic<int> rejecting_{0};
 };
+
+template <class Step>
+net::awaitable<std::invoke_result_t<Step&>> HttpServer::Impl::OnBlockingPool(Step& step) {
+  using StepResult = std::invoke_result_t<Step&>;
+  // co_spawn runs the coroutine on the pool; use_awaitable resumes this coroutine on its own
+  // executor (the connection's strand) when it is done.
+  auto run = [&step]() -> net::awaitable<StepResult> { co_return step(); };
+  auto operation = net::co_spawn(blocking_pool_.get_executor(), std::move(run), net::use_awaitable);
+  StepResult result = co_await std::move(operation);
+  co_return result;
+}
 
 //------------------------------------------------------------------------------------------------
 // Response writing.
@@ -400,6 +465,7 @@ net::awaitable<bool> HttpServer::Impl::WriteResponse(beast::tcp_stream& stream,
       message.set(http::field::content_type, std::string(kTextContentType));
     }
     message.set("X-Request-Id", context.request_id);
+    message.set("X-Content-Type-Options", "nosniff");
     message.keep_alive(keep_alive);
   };
 
@@ -463,6 +529,16 @@ std::optional<Response> HttpServer::Impl::Admit(RequestContext& context, Dispatc
   Result<KeyValues> query = ParseQuery(target->query);
   if (!query.ok()) return ErrorResponse(HttpStatus::bad_request, query.status().message());
   context.query = std::move(*query);
+
+  // Transfer codings other than chunked alone (gzip, deflate, "gzip, chunked") are not
+  // decoded: refuse them (RFC 9112 6.1) instead of reading a coded body as if it were plain.
+  for (const auto& [name, value] : context.headers) {
+    if (EqualsIgnoreCase(name, "Transfer-Encoding") && !IsPlainChunked(value)) {
+      return ErrorResponse(HttpStatus::not_implemented,
+                           "Transfer-Encoding " + QuoteForLog(value) +
+                               " is not supported; send the body as it is or chunked alone");
+    }
+  }
 
   // Authentication comes before routing, so that unknown paths reveal nothing without a token.
   if (!options_.bearer_token.empty()) {
@@ -573,6 +649,36 @@ std::optional<Response> BodyReadFailure(const RequestContext& context,
 
 }  // namespace
 
+net::awaitable<void> HttpServer::Impl::DropSink(const RequestContext& context,
+                                                std::unique_ptr<BodySink>& sink) {
+  if (sink == nullptr) co_return;
+  auto drop = [&] {
+    return Guarded(context, [&] {
+      sink.reset();
+      return true;
+    });
+  };
+  co_await OnBlockingPool(drop);
+}
+
+net::awaitable<std::optional<Response>> HttpServer::Impl::FeedSink(const RequestContext& context,
+                                                                   std::unique_ptr<BodySink>& sink,
+                                                                   std::string_view data) {
+  auto feed = [&]() -> std::optional<Response> {
+    while (!data.empty()) {
+      const std::string_view piece = data.substr(0, kBodyChunkBytes);
+      data.remove_prefix(piece.size());
+      std::optional<std::optional<Response>> early =
+          Guarded(context, [&] { return sink->OnData(piece); });
+      if (!early) return InternalError(context);
+      if (*early) return std::move(*early);
+    }
+    return std::nullopt;
+  };
+  std::optional<Response> refusal = co_await OnBlockingPool(feed);
+  co_return refusal;
+}
+
 net::awaitable<bool> HttpServer::Impl::ReadBody(beast::tcp_stream& stream,
                                                 http::request_parser<http::buffer_body>& parser,
                                                 beast::flat_buffer& buffer,
@@ -591,34 +697,50 @@ net::awaitable<bool> HttpServer::Impl::ReadBody(beast::tcp_stream& stream,
     if (!written) co_return false;
   }
   beast::error_code ec;
+  // A sink gets the body in batches of up to kSinkBatchBytes, one trip to the blocking pool
+  // each (in pieces of at most kBodyChunkBytes): a trip per 64 KiB piece made uploads three
+  // times slower on a loaded machine. A batch is fed early when no more bytes are waiting.
+  std::vector<char> batch(sink != nullptr ? kSinkBatchBytes : 0);
+  std::vector<char>& target = sink != nullptr ? batch : chunk;
+  std::size_t filled = 0;
   while (!parser.is_done()) {
-    request.body().data = chunk.data();
-    request.body().size = chunk.size();
+    request.body().data = target.data() + filled;
+    request.body().size = target.size() - filled;
     stream.expires_after(options_.body_timeout);
     co_await http::async_read_some(stream, buffer, parser, Awaitable(ec));
     if (ec == http::error::need_buffer) ec = {};
     if (ec) break;
-    const std::size_t n = chunk.size() - request.body().size;
-    if (n == 0) continue;
-    const std::string_view piece(chunk.data(), n);
+    filled = target.size() - request.body().size;
     if (sink == nullptr) {
-      context.body.append(piece);
+      context.body.append(chunk.data(), filled);
+      filled = 0;
       continue;
     }
-    std::optional<std::optional<Response>> early =
-        Guarded(context, [&] { return sink->OnData(piece); });
-    if (!early) {
-      refusal = InternalError(context);
-    } else if (*early) {
-      refusal = std::move(**early);
+    // Feed the batch when it is full, the body is done, or nothing more has arrived yet (a
+    // slow client's bytes go to the sink as they come, not when 1 MiB has gathered).
+    beast::error_code available_ec;
+    const bool more_waiting = buffer.size() > 0 || stream.socket().available(available_ec) > 0;
+    if (filled < target.size() && !parser.is_done() && more_waiting) continue;
+    if (filled > 0) {
+      refusal = co_await FeedSink(context, sink, std::string_view(batch.data(), filled));
     }
+    filled = 0;
     if (refusal) break;
   }
   request.body().data = nullptr;
   request.body().size = 0;
   if (!ec) co_return true;
-  if (sink != nullptr) sink->OnAbort(ec.message());
-  sink.reset();
+  if (sink != nullptr) {
+    const std::string reason = ec.message();
+    auto abort = [&] {
+      return Guarded(context, [&] {
+        sink->OnAbort(reason);
+        return true;
+      });
+    };
+    co_await OnBlockingPool(abort);
+  }
+  co_await DropSink(context, sink);
   refusal = BodyReadFailure(context, ec, body_limit);
   co_return refusal.has_value();
 }
@@ -644,7 +766,11 @@ net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
   std::optional<Response> refusal = Admit(context, &dispatch);
   std::unique_ptr<BodySink> sink;
   if (!refusal && dispatch.streaming_handler != nullptr) {
-    refusal = StartStreaming(context, *dispatch.streaming_handler, &sink);
+    // Streaming routes touch the disk: their handler and sink run on the blocking pool.
+    auto start_streaming = [&] {
+      return StartStreaming(context, *dispatch.streaming_handler, &sink);
+    };
+    refusal = co_await OnBlockingPool(start_streaming);
   }
   // Read the body: into context.body, or piece by piece into the sink.
   if (!refusal && has_body) {
@@ -654,7 +780,7 @@ net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
   }
 
   if (refusal) {
-    sink.reset();
+    co_await DropSink(context, sink);
     if (has_body && !parser.is_done()) {
       outcome.keep_alive = false;
       outcome.body_unread = true;
@@ -665,10 +791,14 @@ net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
     co_return outcome;
   }
 
-  std::optional<Response> result =
-      sink != nullptr ? Guarded(context, [&] { return sink->OnComplete(context); })
-                      : Guarded(context, [&] { return (*dispatch.handler)(context); });
-  sink.reset();
+  std::optional<Response> result;
+  if (sink != nullptr) {
+    auto complete = [&] { return Guarded(context, [&] { return sink->OnComplete(context); }); };
+    result = co_await OnBlockingPool(complete);
+    co_await DropSink(context, sink);
+  } else {
+    result = Guarded(context, [&] { return (*dispatch.handler)(context); });
+  }
   if (!result) result = InternalError(context);
   outcome.keep_alive = outcome.keep_alive && !stopping_;
   const bool written = co_await WriteResponse(stream, context, *result, outcome.keep_alive, start);
@@ -682,8 +812,7 @@ net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
 net::awaitable<void> HttpServer::Impl::Session(std::shared_ptr<Connection> connection) {
   beast::tcp_stream& stream = connection->stream;
   beast::error_code ec;
-  const tcp::endpoint remote = stream.socket().remote_endpoint(ec);
-  const std::string remote_address = ec ? std::string("unknown") : remote.address().to_string();
+  const std::string& remote_address = connection->address;
 
   beast::flat_buffer buffer;
   std::vector<char> chunk(kBodyChunkBytes);
@@ -735,20 +864,87 @@ net::awaitable<void> HttpServer::Impl::Session(std::shared_ptr<Connection> conne
   stream.close();
 }
 
-net::awaitable<void> HttpServer::Impl::RejectBusy(tcp::socket socket) {
-  beast::tcp_stream stream(std::move(socket));
-  RequestContext context;
+net::awaitable<void> HttpServer::Impl::RejectBusy(std::shared_ptr<Connection> connection) {
+  beast::tcp_stream& stream = connection->stream;
+  struct Count {
+    explicit Count(std::atomic<int>& n) : n(n), before(n.fetch_add(1)) {}
+    ~Count() { n.fetch_sub(1); }
+    std::atomic<int>& n;
+    const int before;
+  } const rejecting(rejecting_);
+  if (rejecting.before >= options_.max_connections) {
+    // A flood of refused connections: no answer for those beyond the cap.
+    stream.close();
+    co_return;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  // An always-reachable path (/healthz) is still served: wait briefly for the request header.
+  beast::flat_buffer buffer;
+  http::request_parser<http::buffer_body> parser;
+  parser.header_limit(options_.max_header_bytes);
   beast::error_code ec;
-  const tcp::endpoint remote = stream.socket().remote_endpoint(ec);
-  context.remote_address = ec ? std::string("unknown") : remote.address().to_string();
-  context.request_id = NewRequestId();
-  Response response =
-      RetryLaterResponse(HttpStatus::service_unavailable, "too many connections; retry later",
-                         options_.retry_after_seconds);
-  const auto now = std::chrono::steady_clock::now();
-  co_await WriteResponse(stream, context, response, /*keep_alive=*/false, now);
+  // Not the stream's own timeout, which closes the socket: the 503 must still be sent after a
+  // client that sends nothing. The timer cancels the read instead (both run on the strand).
+  auto reading = std::make_shared<bool>(true);
+  net::steady_timer timer(stream.get_executor());
+  timer.expires_after(std::min(kRejectHeaderTimeout, options_.header_timeout));
+  timer.async_wait([connection, reading](const beast::error_code& error) {
+    beast::error_code ignored;
+    if (!error && *reading) connection->stream.socket().cancel(ignored);
+  });
+  stream.expires_never();
+  co_await http::async_read_header(stream, buffer, parser, Awaitable(ec));
+  *reading = false;
+  timer.cancel();
+  RequestContext context;
+  std::optional<Response> response;
+  if (!ec) {
+    context = ContextFromHeader(parser, connection->address);
+    const Result<TargetParts> target = SplitTarget(context.target);
+    const bool reachable =
+        target.ok() && parser.is_done() &&
+        (context.method == HttpVerb::get || context.method == HttpVerb::head) &&
+        std::find(options_.always_reachable_paths.begin(), options_.always_reachable_paths.end(),
+                  target->path) != options_.always_reachable_paths.end();
+    Dispatch dispatch;
+    if (reachable && !Admit(context, &dispatch) && dispatch.handler != nullptr) {
+      response = Guarded(context, [&] { return (*dispatch.handler)(context); });
+      if (!response) response = InternalError(context);
+    }
+  } else {
+    context.remote_address = connection->address;
+    context.request_id = NewRequestId();
+  }
+  if (!response) {
+    response =
+        RetryLaterResponse(HttpStatus::service_unavailable, "too many connections; retry later",
+                           options_.retry_after_seconds);
+  }
+  co_await WriteResponse(stream, context, *response, /*keep_alive=*/false, start);
   co_await Linger(stream);
   stream.close();
+}
+
+bool HttpServer::Impl::TryAddConnection(const std::shared_ptr<Connection>& connection) {
+  std::lock_guard<std::mutex> lock(connections_mutex_);
+  if (static_cast<int>(connections_.size()) >= options_.max_connections) return false;
+  int& from_address = connections_per_address_[connection->address];
+  if (from_address >= options_.max_connections_per_address) {
+    if (from_address == 0) connections_per_address_.erase(connection->address);
+    return false;
+  }
+  ++from_address;
+  connections_.insert(connection);
+  return true;
+}
+
+void HttpServer::Impl::RemoveConnection(const std::shared_ptr<Connection>& connection) {
+  std::lock_guard<std::mutex> lock(connections_mutex_);
+  if (connections_.erase(connection) == 0) return;
+  const auto it = connections_per_address_.find(connection->address);
+  if (it != connections_per_address_.end() && --it->second <= 0) {
+    connections_per_address_.erase(it);
+  }
 }
 
 //------------------------------------------------------------------------------------------------
@@ -797,15 +993,11 @@ net::awaitable<void> HttpServer::Impl::AcceptLoop() {
       continue;
     }
     auto self = shared_from_this();
-    if (ConnectionCount() >= options_.max_connections) {
-      net::co_spawn(socket.get_executor(), RejectBusy(std::move(socket)),
-                    [](std::exception_ptr) {});
-      continue;
-    }
     auto connection = std::make_shared<Connection>(std::move(socket));
-    {
-      std::lock_guard<std::mutex> lock(connections_mutex_);
-      connections_.insert(connection);
+    if (!TryAddConnection(connection)) {
+      net::co_spawn(connection->stream.get_executor(), RejectBusy(connection),
+                    [self](std::exception_ptr) {});
+      continue;
     }
     net::co_spawn(connection->stream.get_executor(), Session(connection),
                   [self, connection](std::exception_ptr error) {
@@ -818,8 +1010,7 @@ net::awaitable<void> HttpServer::Impl::AcceptLoop() {
                         LOG_ERROR << "connection ended by a non-standard exception";
                       }
                     }
-                    std::lock_guard<std::mutex> lock(self->connections_mutex_);
-                    self->connections_.erase(connection);
+                    self->RemoveConnection(connection);
                   });
   }
 }

@@ -10,7 +10,13 @@
 //   * a header size limit (431), a body limit per route kind: max_body_bytes for ordinary routes,
 //     max_upload_bytes for streaming routes. A Content-Length over the limit is answered with
 //     413 before any body byte is read (and before "100 Continue" is sent);
-//   * at most max_connections concurrent connections; further clients get 503 + Retry-After;
+//   * at most max_connections concurrent connections, and at most max_connections_per_address
+//     from one client address; further clients get 503 + Retry-After, except that a GET or HEAD
+//     of an always-reachable path (/healthz) is still answered on such a connection;
+//   * the streaming routes' work (the handler, every BodySink call and the sink's destruction:
+//     disk writes, zip extraction, photo checks, fsync, removing temporary folders) runs on a
+//     separate pool of blocking_threads threads, never on the I/O threads, so a large upload's
+//     final work cannot delay other requests (/healthz, status polls);
 //   * the optional bearer token (401 + WWW-Authenticate) on every path but public_paths;
 //   * the headers every response carries (Server, Content-Type, X-Request-Id, Connection), one
 //     access-log line per request (method, path, status, bytes, milliseconds, client, id), and a
@@ -50,6 +56,14 @@ struct HttpServerOptions {
   int num_threads = 2;
   // Concurrent connections, >= 1; more are answered 503 with Retry-After and closed.
   int max_connections = 256;
+  // Concurrent connections from one client address, >= 1 (a value over max_connections
+  // means no separate cap); more from that address are answered 503 with Retry-After, so one
+  // address cannot take the whole pool.
+  int max_connections_per_address = 32;
+  // Threads that run the streaming routes' handlers and body sinks (uploads: disk writes, zip
+  // extraction, photo checks, fsync), [1, 64]. Work beyond them waits in a queue; the number of
+  // uploads at once is bounded by the upload route itself (max_concurrent_uploads).
+  int blocking_threads = 4;
   // Maximum size in bytes of a request line plus headers; larger requests get 431.
   std::uint32_t max_header_bytes = 16 * 1024;
   // Maximum body in bytes of ordinary (buffered) routes; JSON requests are small.
@@ -69,6 +83,10 @@ struct HttpServerOptions {
   std::string bearer_token;
   // Exact request paths reachable without the token.
   std::vector<std::string> public_paths = {"/healthz"};
+  // Exact request paths (GET/HEAD, ordinary routes) still answered on a connection refused for
+  // the connection caps: the request header is read (within a short time) and, when it asks
+  // for one of these, it is served; anything else gets the 503.
+  std::vector<std::string> always_reachable_paths = {"/healthz"};
   // Value of the Server header.
   std::string server_name = "reconduit";
   // Seconds in Retry-After when the server is full (503) or a handler reports

@@ -3,6 +3,11 @@
 #include "server/http/url.h"
 
 #include <algorithm>
+#include <cctype>
+#include <fstream>
+#include <iterator>
+#include <openssl/evp.h>
+#include <openssl/sha.h>
 #include <system_error>
 
 namespace reconduit::server {
@@ -52,6 +57,41 @@ Result<fs::path> ResolveStaticPath(const fs::path& root, std::string_view raw_pa
   return candidate;
 }
 
+namespace {
+
+// "'sha256-<base64>'" of `text`, as CSP source expressions name inline scripts.
+std::string Sha256Source(std::string_view text) {
+  unsigned char digest[SHA256_DIGEST_LENGTH];
+  SHA256(reinterpret_cast<const unsigned char*>(text.data()), text.size(), digest);
+  unsigned char encoded[4 * ((SHA256_DIGEST_LENGTH + 2) / 3) + 1];
+  const int length = EVP_EncodeBlock(encoded, digest, SHA256_DIGEST_LENGTH);
+  return "'sha256-" + std::string(reinterpret_cast<const char*>(encoded), length) + "'";
+}
+
+}  // namespace
+
+std::string ContentSecurityPolicy(std::string_view html) {
+  std::string lower(html);
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::string script_sources = "'self'";
+  std::size_t at = 0;
+  while ((at = lower.find("<script", at)) != std::string::npos) {
+    const std::size_t tag_end = lower.find('>', at);
+    if (tag_end == std::string::npos) break;
+    const std::size_t close = lower.find("</script", tag_end);
+    if (close == std::string::npos) break;
+    const std::string_view tag(lower.data() + at, tag_end - at);
+    if (tag.find(" src=") == std::string_view::npos) {
+      script_sources += " " + Sha256Source(html.substr(tag_end + 1, close - tag_end - 1));
+    }
+    at = close;
+  }
+  return "default-src 'self'; script-src " + script_sources +
+         "; style-src 'self'; img-src 'self' data: blob:; connect-src 'self' data: blob:; "
+         "object-src 'none'; base-uri 'none'; frame-ancestors 'none'; form-action 'self'";
+}
+
 Handler MakeStaticFileHandler(fs::path root) {
   return [root = std::move(root)](RequestContext& context) -> Response {
     Result<fs::path> file = ResolveStaticPath(root, context.path);
@@ -63,6 +103,12 @@ Handler MakeStaticFileHandler(fs::path root) {
     }
     Response response = Response::File(*file);
     response.SetHeader("Cache-Control", "no-cache");
+    if (file->extension() == ".html") {
+      std::ifstream in(*file, std::ios::binary);
+      const std::string html((std::istreambuf_iterator<char>(in)),
+                             std::istreambuf_iterator<char>());
+      response.SetHeader("Content-Security-Policy", ContentSecurityPolicy(html));
+    }
     return response;
   };
 }

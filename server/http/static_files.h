@@ -28,7 +28,17 @@ Result<std::filesystem::path> ResolveStaticPath(const std::filesystem::path& roo
 // get a 400 JSON error, missing files a 404 JSON error; files are streamed with the MIME type of
 // their extension and `Cache-Control: no-cache` (revalidate, since the page changes with
 // releases and carries no version in its URLs).
+// HTML files also carry a Content-Security-Policy (ContentSecurityPolicy below); every response
+// of the server carries X-Content-Type-Options: nosniff (the transport adds it).
 Handler MakeStaticFileHandler(std::filesystem::path root);
+
+// The Content-Security-Policy of an HTML page: scripts, styles, fetches and everything else
+// from the page's own origin only (module scripts and WebGL need nothing more); images also
+// from data: and blob: URLs and fetches of them (three.js decodes a model's embedded textures
+// through blob: URLs); no plugins, no <base>, no framing by other sites. Inline <script>
+// elements without src (an import map) are allowed by the SHA-256 hash of their text, computed
+// from `html`; no other inline script or style is.
+std::string ContentSecurityPolicy(std::string_view html);
 
 }  // namespace reconduit::server
 

@@ -100,5 +100,35 @@ TEST_F(StaticFilesTest, HandlerAnswersFilesAndJsonErrors) {
   EXPECT_EQ(response.body().find("top secret"), std::string::npos);
 }
 
+// Issue 12: the page had no Content-Security-Policy. Its inline import map (what the three.js
+// view uses) is allowed by hash, its own module scripts by 'self'; other files get none.
+TEST_F(StaticFilesTest, PagesCarryAContentSecurityPolicy) {
+  const std::string map = "\n    {\"imports\": {\"three\": \"./vendor/three.module.js\"}}\n  ";
+  Write(root_ / "page.html", "<html><head><script type=\"importmap\">" + map +
+                                 "</script><SCRIPT type=\"module\" src=\"app.js\"></SCRIPT>"
+                                 "</head></html>");
+  const Handler handler = MakeStaticFileHandler(root_);
+  RequestContext context;
+  context.path = "/page.html";
+  const Response page = handler(context);
+  ASSERT_NE(page.FindHeader("Content-Security-Policy"), nullptr);
+  const std::string policy = *page.FindHeader("Content-Security-Policy");
+  // python3: base64(sha256(map)).
+  EXPECT_NE(
+      policy.find("script-src 'self' 'sha256-Xqp4IuITNLZX3BFKNsu0WEcblwQ8O90+57eSzl4FzIU='; "),
+      std::string::npos)
+      << policy;
+  EXPECT_NE(policy.find("default-src 'self'"), std::string::npos);
+  EXPECT_NE(policy.find("object-src 'none'"), std::string::npos);
+  EXPECT_NE(policy.find("frame-ancestors 'none'"), std::string::npos);
+  EXPECT_EQ(policy.find("unsafe"), std::string::npos);
+  // No inline script: 'self' alone.
+  EXPECT_NE(ContentSecurityPolicy("<script src=\"a.js\"></script>").find("script-src 'self';"),
+            std::string::npos);
+
+  context.path = "/js/app.js";
+  EXPECT_EQ(handler(context).FindHeader("Content-Security-Policy"), nullptr);
+}
+
 }  // namespace
 }  // namespace reconduit::server

@@ -38,9 +38,16 @@ struct TestClient::State {
   bool connected = false;
 };
 
-TestClient::TestClient(int port, std::chrono::milliseconds timeout)
+TestClient::TestClient(int port,
+                       std::chrono::milliseconds timeout,
+                       const std::string& source_address)
     : state_(std::make_unique<State>()) {
   beast::error_code ec;
+  if (!source_address.empty()) {
+    state_->socket.open(tcp::v4(), ec);
+    if (!ec) state_->socket.bind(tcp::endpoint(net::ip::make_address(source_address, ec), 0), ec);
+    if (ec) return;
+  }
   state_->socket.connect(
       tcp::endpoint(net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)), ec);
   if (ec) return;

@@ -28,8 +28,12 @@ struct TestResponse {
 
 class TestClient {
  public:
-  // Connects to 127.0.0.1:port; connected() tells whether it worked.
-  explicit TestClient(int port, std::chrono::milliseconds timeout = std::chrono::seconds(10));
+  // Connects to 127.0.0.1:port; connected() tells whether it worked. A non-empty
+  // `source_address` (e.g. "127.0.0.2": every 127.x.y.z is the loopback on Linux) is bound as
+  // the connection's local address, so a test can act as several clients.
+  explicit TestClient(int port,
+                      std::chrono::milliseconds timeout = std::chrono::seconds(10),
+                      const std::string& source_address = "");
   ~TestClient();
   TestClient(const TestClient&) = delete;
   TestClient& operator=(const TestClient&) = delete;

@@ -8,6 +8,8 @@
 #include <nlohmann/json.hpp>
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
 #include <thread>
 
 namespace reconduit::server {
@@ -53,13 +55,62 @@ class CountingSink : public BodySink {
   int pieces_ = 0;
 };
 
+// A gate a sink waits at until the test opens it: holds an upload mid-finalisation.
+class Gate {
+ public:
+  // Called by the sink: says it arrived, then waits until Open().
+  void Pass() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    arrived_ = true;
+    changed_.notify_all();
+    changed_.wait(lock, [this] { return open_; });
+  }
+  // Called by the test: true once a sink waits at the gate (within `timeout`).
+  bool WaitForArrival(std::chrono::milliseconds timeout) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    return changed_.wait_for(lock, timeout, [this] { return arrived_; });
+  }
+  void Open() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    open_ = true;
+    changed_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  bool arrived_ = false;
+  bool open_ = false;
+};
+
+// Stands for an upload whose storing blocks (disk writes, zip extraction, fsync): waits at the
+// gate in OnData (?hold=data) or in OnComplete (otherwise).
+class GatedSink : public BodySink {
+ public:
+  GatedSink(Gate* gate, bool hold_data) : gate_(gate), hold_data_(hold_data) {}
+  std::optional<Response> OnData(std::string_view chunk) override {
+    if (hold_data_ && bytes_ == 0) gate_->Pass();
+    bytes_ += chunk.size();
+    return std::nullopt;
+  }
+  Response OnComplete(RequestContext&) override {
+    if (!hold_data_) gate_->Pass();
+    return Response::Json({{"bytes", bytes_}}, HttpStatus::created);
+  }
+
+ private:
+  Gate* gate_;
+  bool hold_data_;
+  std::size_t bytes_ = 0;
+};
+
 class TransportTest : public ::testing::Test {
  protected:
   void Start(HttpServerOptions options = {}) {
     options.host = "127.0.0.1";
     options.port = 0;
     options.handle_signals = false;
-    options.num_threads = 2;
+    options.num_threads = io_threads_;
     Router router;
     router.Add(HttpVerb::get, "/healthz", [](RequestContext&) {
       return Response::Json({{"status", "ok"}});
@@ -85,6 +136,9 @@ class TransportTest : public ::testing::Test {
         return ErrorResponse(HttpStatus::unsupported_media_type, boundary.status().message());
       }
       return std::make_unique<CountingSink>(*boundary, &aborts_);
+    });
+    router.AddStreaming(HttpVerb::post, "/gated", [this](RequestContext& context) -> StreamStart {
+      return std::make_unique<GatedSink>(&gate_, context.Query("hold") == "data");
     });
     server_ = std::make_unique<HttpServer>(options, std::move(router));
     ASSERT_TRUE(server_->Listen().ok());
@@ -112,7 +166,9 @@ class TransportTest : public ::testing::Test {
   std::thread thread_;
   Status run_status_;
   int port_ = 0;
+  int io_threads_ = 2;
   std::atomic<int> aborts_{0};
+  Gate gate_;
 };
 
 TEST_F(TransportTest, EveryResponseCarriesTheCommonHeaders) {
@@ -261,7 +317,7 @@ TEST_F(TransportTest, SinkErrorEndsTheRequest) {
       Fetch(port_, "POST", "/upload", {{"Content-Type", "multipart/form-data; boundary=XyZ"}},
             "--XyZ\r\nno colon\r\n\r\nx\r\n--XyZ--");
   EXPECT_EQ(response.status, 400u);
-  EXPECT_EQ(nlohmann::json::parse(response.body)["error"]["code"], "invalid_argument");
+  EXPECT_EQ(nlohmann::json::parse(response.body)["error"]["code"], "bad_request");
   // Truncated multipart: the body ends before the closing boundary.
   response =
       Fetch(port_, "POST", "/upload", {{"Content-Type", "multipart/form-data; boundary=XyZ"}},
@@ -419,6 +475,118 @@ TEST(HttpServer, ListenFailsClearlyWhenThePortIsTaken) {
             std::string::npos)
       << status;
   EXPECT_NE(status.message().find("in use"), std::string::npos) << status;
+}
+
+}  // namespace
+}  // namespace reconduit::server
+
+namespace reconduit::server {
+namespace {
+
+// With one I/O thread, /healthz is answered while an upload's sink is blocked in OnComplete
+// (or in OnData): the sinks run on the blocking pool, not on the I/O threads.
+void ExpectHealthzWhileGated(int port, Gate& gate, const std::string& target) {
+  TestResponse upload;
+  std::thread uploader([&] {
+    TestClient client(port, std::chrono::seconds(30));
+    upload = client.Request("POST", target, {{"Content-Type", "application/octet-stream"}},
+                            std::string(200 * 1024, 'z'));
+  });
+  ASSERT_TRUE(gate.WaitForArrival(std::chrono::seconds(10)));
+  // Held: the I/O thread must still serve others. (Before the pool, this request waited
+  // until the gate opened, and its client gave up after 10 s.)
+  TestResponse health = Fetch(port, "GET", "/healthz");
+  TestResponse again = Fetch(port, "GET", "/items/7");
+  gate.Open();
+  uploader.join();
+  EXPECT_EQ(health.status, 200u) << health.error;
+  EXPECT_EQ(again.status, 200u) << again.error;
+  ASSERT_EQ(upload.status, 201u) << upload.error;
+  EXPECT_EQ(nlohmann::json::parse(upload.body)["bytes"], 200 * 1024);
+}
+
+TEST_F(TransportTest, HealthzAnswersWhileAnUploadIsFinalising) {
+  io_threads_ = 1;
+  Start();
+  ExpectHealthzWhileGated(port_, gate_, "/gated");
+}
+
+TEST_F(TransportTest, HealthzAnswersWhileAnUploadIsStoringABodyPiece) {
+  io_threads_ = 1;
+  Start();
+  ExpectHealthzWhileGated(port_, gate_, "/gated?hold=data");
+}
+
+TEST_F(TransportTest, OneAddressCannotTakeEveryConnection) {
+  HttpServerOptions options;
+  options.max_connections = 8;
+  options.max_connections_per_address = 2;
+  options.retry_after_seconds = 4;
+  Start(options);
+  TestClient first(port_);
+  TestClient second(port_);
+  ASSERT_EQ(first.Request("GET", "/items/1").status, 200u);
+  ASSERT_EQ(second.Request("GET", "/items/2").status, 200u);
+
+  // A third connection from the same address is refused...
+  TestClient third(port_);
+  TestResponse refused = third.Request("GET", "/items/3");
+  EXPECT_EQ(refused.status, 503u) << refused.error;
+  EXPECT_EQ(refused.Header("Retry-After"), "4");
+  // ...but may still ask for /healthz...
+  TestClient probe(port_);
+  TestResponse health = probe.Request("GET", "/healthz");
+  EXPECT_EQ(health.status, 200u) << health.error;
+  EXPECT_EQ(health.Header("Connection"), "close");
+  // ...and another address is served normally.
+  TestClient other(port_, std::chrono::seconds(10), "127.0.0.2");
+  ASSERT_TRUE(other.connected());
+  TestResponse served = other.Request("GET", "/items/4");
+  EXPECT_EQ(served.status, 200u) << served.error;
+  EXPECT_EQ(served.body, "item 4");
+
+  // The address's places come back when its connections close.
+  first.Request("GET", "/items/1", {{"Connection", "close"}});
+  EXPECT_TRUE(first.WaitForClose());
+  for (int attempt = 0; attempt < 100 && server_->ConnectionCount() > 2; ++attempt) {
+    std::this_thread::sleep_for(10ms);
+  }
+  TestClient again(port_);
+  EXPECT_EQ(again.Request("GET", "/items/5").status, 200u);
+}
+
+// Issue 12: "gzip, chunked" was read as chunked with the gzip coding ignored.
+TEST_F(TransportTest, TransferCodingsOtherThanChunkedGet501) {
+  Start();
+  for (const char* coding : {"gzip, chunked", "deflate", "gzip"}) {
+    TestClient client(port_);
+    ASSERT_TRUE(client.Write(std::string("POST /echo HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: ") +
+                             coding + "\r\n\r\n5\r\nhello\r\n0\r\n\r\n"));
+    const TestResponse response = client.Read();
+    EXPECT_EQ(response.status, 501u) << coding << " " << response.error << " " << response.body;
+    EXPECT_EQ(response.Header("X-Content-Type-Options"), "nosniff");
+  }
+  TestClient client(port_);
+  ASSERT_TRUE(
+      client.Write("POST /echo HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: "
+                   "Chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n"));
+  const TestResponse plain = client.Read();
+  ASSERT_EQ(plain.status, 200u) << plain.error;
+  EXPECT_EQ(nlohmann::json::parse(plain.body)["body"], "hello");
+  EXPECT_EQ(plain.Header("X-Content-Type-Options"), "nosniff");
+}
+
+TEST(HttpServerOptionsTest, ChecksTheNewLimits) {
+  HttpServerOptions options;
+  std::string error;
+  EXPECT_TRUE(options.Check(&error)) << error;
+  options.max_connections_per_address = 0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("max_connections_per_address"), std::string::npos);
+  options.max_connections_per_address = 1;
+  options.blocking_threads = 0;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("blocking_threads"), std::string::npos);
 }
 
 }  // namespace

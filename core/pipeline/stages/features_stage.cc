@@ -39,6 +39,9 @@ StageResult FeaturesStage::Run(StageContext& context) const {
   reader.min_side = context.options.min_image_side;
   reader.max_pixels = context.options.max_image_pixels;
   reader.read_exif = false;
+  // Read at the working size: a large JPEG is decoded at reduced scale (image_reader.h), so
+  // its full-size pixels never exist; SIFT reports in the original's pixels.
+  reader.max_side = sift.max_image_side;
 
   // OpenCV's own threads would compete with ours: one OpenCV thread per photo in flight.
   // SIFT's pyramids on huge pages: see huge_page_allocator.h (a 4x speed-up here).
@@ -54,9 +57,11 @@ StageResult FeaturesStage::Run(StageContext& context) const {
         [&](std::size_t k) {
           context.cancel.ThrowIfCanceled();
           const IngestedImage& image = *accepted[k];
-          auto pixels = ReadImage(image.path, reader);
+          ImageInfo info;
+          auto pixels = ReadImage(image.path, reader, &info);
           THROW_CHECK(pixels.ok()) << image.name << ": " << pixels.status().message();
-          const FeatureSet features = ExtractSiftFeatures(*pixels, sift);
+          const FeatureSet features =
+              ExtractSiftFeatures(*pixels, sift, cv::Size(info.width, info.height));
           const Status written =
               WriteFeatures(FeaturesPath(context.workspace, image.index), features);
           THROW_CHECK(written.ok()) << written.message();
