@@ -257,6 +257,16 @@ int main(int argc, char** argv) {
   Router router;
   AddApiRoutes(&router, &services);
   router.SetFallback(MakeStaticFileHandler(web_dir));
+  if (!config.http.bearer_token.empty()) {
+    // The page's own files need no token (issue 12): a browser cannot send one with a
+    // navigation or a script, style or module load, and they hold nothing but the page, which
+    // then asks for the token and sends it with every API call. Every other path still
+    // answers 401 without it, unknown ones included.
+    const std::vector<std::string> page = StaticFilePaths(web_dir);
+    config.http.public_paths.insert(config.http.public_paths.end(), page.begin(), page.end());
+    LOG_INFO << "bearer token required except on /healthz and the " << page.size()
+             << " file path(s) of the web page";
+  }
 
   HttpServer server(config.http, std::move(router));
   if (reconduit::Status status = server.Listen(); !status.ok()) {

@@ -59,6 +59,25 @@ Result<fs::path> ResolveStaticPath(const fs::path& root, std::string_view raw_pa
 
 namespace {
 
+// A path's characters as a browser sends them: RFC 3986 pchar and '/' as they are, every other
+// byte (space, '%', '?', '#', non-ASCII) as %XX.
+std::string PercentEncodePath(std::string_view path) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  static constexpr std::string_view kKept = "-._~!$&'()*+,;=:@/";
+  std::string out;
+  for (const char c : path) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (std::isalnum(byte) != 0 || kKept.find(c) != std::string_view::npos) {
+      out += c;
+    } else {
+      out += '%';
+      out += kHex[byte >> 4];
+      out += kHex[byte & 0xF];
+    }
+  }
+  return out;
+}
+
 // "'sha256-<base64>'" of `text`, as CSP source expressions name inline scripts.
 std::string Sha256Source(std::string_view text) {
   unsigned char digest[SHA256_DIGEST_LENGTH];
@@ -90,6 +109,29 @@ std::string ContentSecurityPolicy(std::string_view html) {
   return "default-src 'self'; script-src " + script_sources +
          "; style-src 'self'; img-src 'self' data: blob:; connect-src 'self' data: blob:; "
          "object-src 'none'; base-uri 'none'; frame-ancestors 'none'; form-action 'self'";
+}
+
+std::vector<std::string> StaticFilePaths(const fs::path& root) {
+  std::vector<std::string> paths;
+  std::error_code ec;
+  fs::recursive_directory_iterator it(root, ec);
+  for (const fs::recursive_directory_iterator end; !ec && it != end; it.increment(ec)) {
+    const fs::path relative = it->path().lexically_relative(root);
+    if (relative.filename().string().front() == '.') {
+      // Hidden names are never served: skip a hidden folder's whole tree (web/.deps).
+      if (it->is_directory(ec)) it.disable_recursion_pending();
+      continue;
+    }
+    if (!it->is_regular_file(ec)) continue;
+    const std::string path = PercentEncodePath("/" + relative.generic_string());
+    if (!ResolveStaticPath(root, path).ok()) continue;
+    paths.push_back(path);
+    if (relative.filename() == "index.html") {
+      paths.push_back(path.substr(0, path.size() - std::string_view("index.html").size()));
+    }
+  }
+  std::sort(paths.begin(), paths.end());
+  return paths;
 }
 
 Handler MakeStaticFileHandler(fs::path root) {

@@ -13,7 +13,9 @@
 #include "server/http/router.h"
 
 #include <filesystem>
+#include <string>
 #include <string_view>
+#include <vector>
 
 namespace reconduit::server {
 
@@ -31,6 +33,14 @@ Result<std::filesystem::path> ResolveStaticPath(const std::filesystem::path& roo
 // HTML files also carry a Content-Security-Policy (ContentSecurityPolicy below); every response
 // of the server carries X-Content-Type-Options: nosniff (the transport adds it).
 Handler MakeStaticFileHandler(std::filesystem::path root);
+
+// The request paths of the files MakeStaticFileHandler(root) serves, as a browser writes them
+// (percent-encoded where a name needs it), sorted: "/" and "/<folder>/" for each index.html, and
+// "/<relative path>" for every regular file below `root` that ResolveStaticPath accepts (no
+// hidden names, nothing that leaves the root). A snapshot: files added later are not listed.
+// The server makes these public when it requires a bearer token, since a browser cannot send
+// the token with a navigation or a script, style or module load (server/main.cc).
+std::vector<std::string> StaticFilePaths(const std::filesystem::path& root);
 
 // The Content-Security-Policy of an HTML page: scripts, styles, fetches and everything else
 // from the page's own origin only (module scripts and WebGL need nothing more); images also

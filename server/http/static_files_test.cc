@@ -130,5 +130,26 @@ TEST_F(StaticFilesTest, PagesCarryAContentSecurityPolicy) {
   EXPECT_EQ(handler(context).FindHeader("Content-Security-Policy"), nullptr);
 }
 
+// Issue 12: with a bearer token the page's own files are public (a browser cannot send the
+// token with a navigation or a script load). Exactly what the handler serves is listed: not
+// hidden files or folders, not what a symlink reaches outside the root.
+TEST_F(StaticFilesTest, ListsTheRequestPathsOfTheServedFiles) {
+  fs::create_directories(root_ / ".deps" / "three");
+  Write(root_ / ".deps" / "three" / "three.module.js", "hidden");
+  fs::create_symlink(base_ / "secret.txt", root_ / "link.txt");
+  Write(root_ / "100% #1?.txt", "odd name");
+  EXPECT_EQ(StaticFilePaths(root_),
+            (std::vector<std::string>{"/", "/100%25%20%231%3F.txt", "/docs/", "/docs/index.html",
+                                      "/index.html", "/js/app.js", "/model%20v2.glb"}));
+  // Each listed path is one the handler answers with its file.
+  const Handler handler = MakeStaticFileHandler(root_);
+  for (const std::string& path : StaticFilePaths(root_)) {
+    RequestContext context;
+    context.path = path;
+    EXPECT_EQ(handler(context).status(), HttpStatus::ok) << path;
+  }
+  EXPECT_TRUE(StaticFilePaths(base_ / "missing").empty());
+}
+
 }  // namespace
 }  // namespace reconduit::server
