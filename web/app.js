@@ -36,9 +36,176 @@ async function errorText(response) {
 }
 
 async function api(path, options = {}) {
-  const response = await fetch(API + path, options);
+  const response = await authFetch(API + path, options);
   if (!response.ok) throw new Error(await errorText(response));
   return response.json();
+}
+
+// ---------------------------------------------------------------------------------------------
+// The access token: a service started with --token (or RECONDUIT_TOKEN) answers 401 to every
+// request without it but /healthz and the page's own files.
+//
+// The page asks for it when the service first answers 401, keeps it in this tab's
+// sessionStorage only (gone when the tab closes; "Forget the token" clears it sooner) and sends
+// it as `Authorization: Bearer …` with every request: fetch and XMLHttpRequest here, the 3D
+// view's loader in viewer.js. What the browser would fetch by URL on its own (downloads,
+// pictures, links opened in a new tab) cannot carry a header, so with a token those are fetched
+// here and handed over as blob: URLs. The token never goes in a URL: URLs end up in logs and in
+// the history.
+
+const TOKEN_KEY = 'reconduit.token';
+
+function storedToken() {
+  try {
+    return sessionStorage.getItem(TOKEN_KEY) || '';
+  } catch (e) {
+    return '';  // Storage disabled: every request then goes without a token.
+  }
+}
+
+function authHeaders(token = storedToken()) {
+  return token ? {Authorization: `Bearer ${token}`} : {};
+}
+
+function showTokenState() {
+  $('token-state').hidden = !storedToken();
+}
+
+// The open dialog's promise (of the token entered): every refused request waits for the same.
+let tokenAsked = null;
+
+function askToken(message) {
+  if (tokenAsked) return tokenAsked;
+  tokenAsked = new Promise((resolve) => {
+    const form = $('token-form');
+    const input = $('token-input');
+    $('token-message').textContent = message;
+    $('token-message').className = 'error';
+    input.value = '';
+    const submit = (event) => {
+      event.preventDefault();
+      const token = input.value.trim();
+      // What an HTTP header can carry; the service's tokens have no white space either.
+      if (!/^[\x21-\x7e]+$/.test(token)) {
+        $('token-message').textContent = 'A token is printable ASCII, without spaces.';
+        return;
+      }
+      form.removeEventListener('submit', submit);
+      try {
+        sessionStorage.setItem(TOKEN_KEY, token);
+      } catch (e) { /* Storage disabled: the requests waiting now still get the token. */ }
+      $('token-dialog').close();
+      tokenAsked = null;
+      showTokenState();
+      resolve(token);
+    };
+    form.addEventListener('submit', submit);
+    $('token-dialog').showModal();
+    input.focus();
+  });
+  return tokenAsked;
+}
+
+// After a 401 to a request that carried `used` ('' for none), with the service's `reason`:
+// resolves with the token to try next. A token entered meanwhile (for another refused request)
+// is simply tried; a refused one is forgotten and asked for again.
+function tokenAfterRefusal(used, reason) {
+  const current = storedToken();
+  if (current && current !== used) return Promise.resolve(current);
+  if (!used) {
+    return askToken('This service needs an access token (it was started with one). ' +
+                    'Enter it to use the page.');
+  }
+  try {
+    sessionStorage.removeItem(TOKEN_KEY);
+  } catch (e) { /* nothing kept */ }
+  showTokenState();
+  return askToken(`The service refused this token (${reason}). Check it and enter it again.`);
+}
+
+// fetch with the token; a 401 asks for it (again) and retries. For requests whose body can be
+// sent twice (every fetch of this page: the uploads go through XMLHttpRequest).
+async function authFetch(url, options = {}) {
+  for (;;) {
+    const token = storedToken();
+    const response = await fetch(url, {...options,
+                                       headers: {...(options.headers || {}), ...authHeaders(token)}});
+    if (response.status !== 401) return response;
+    await tokenAfterRefusal(token, await errorText(response));
+  }
+}
+
+// The body of `response` as a Blob, reporting progress(loaded, total) as it arrives.
+async function readBlob(response, progress) {
+  const total = Number(response.headers.get('Content-Length')) || 0;
+  const type = response.headers.get('Content-Type') || '';
+  if (!response.body) return response.blob();
+  const reader = response.body.getReader();
+  const parts = [];
+  let loaded = 0;
+  for (;;) {
+    const {done, value} = await reader.read();
+    if (done) break;
+    parts.push(value);
+    loaded += value.length;
+    progress(loaded, total);
+  }
+  return new Blob(parts, {type});
+}
+
+// What a click on a link to a service URL does when there is a token: fetches `href` with it,
+// then saves the file as `name`, or opens it in a new tab when `name` is null. Progress and
+// errors go to `status` (an element).
+async function followWithToken(href, name, status) {
+  const label = name || href.split('/').pop();
+  status.className = 'hint';
+  status.textContent = `Downloading ${label}…`;
+  let blob;
+  try {
+    const response = await authFetch(href);
+    if (!response.ok) throw new Error(await errorText(response));
+    blob = await readBlob(response, (loaded, total) => {
+      status.textContent = `Downloading ${label}: ${bytes(loaded)}` +
+                           (total > 0 ? ` of ${bytes(total)}` : '');
+    });
+  } catch (e) {
+    status.className = 'error';
+    status.textContent = `${label} could not be downloaded: ${e.message}`;
+    return;
+  }
+  const url = URL.createObjectURL(blob);
+  // Long enough for the browser to save it, or for the new tab to read it.
+  setTimeout(() => URL.revokeObjectURL(url), 60000);
+  status.textContent = '';
+  if (name) {
+    const save = el('a', {href: url, download: name, hidden: true});
+    document.body.append(save);
+    save.click();
+    save.remove();
+  } else if (!window.open(url, '_blank')) {
+    // A popup blocker (the click's permission can lapse during a long download).
+    status.replaceChildren(`${label} is ready: `, el('a', {href: url, target: '_blank'}, 'open it'));
+  }
+}
+
+// Makes `link` (to a service URL) work with a token: followed as usual without one (the browser
+// streams the download to disk), through followWithToken with one; `status`: where its progress
+// shows (by default under the job's buttons).
+function withToken(link, name, status = null) {
+  link.addEventListener('click', (event) => {
+    if (!storedToken()) return;
+    event.preventDefault();
+    followWithToken(link.getAttribute('href'), name, status || $('download-status'));
+  });
+  return link;
+}
+
+function forgetToken() {
+  try {
+    sessionStorage.removeItem(TOKEN_KEY);
+  } catch (e) { /* nothing kept */ }
+  // Start over: nothing the token showed stays on screen, and the service will ask again.
+  location.reload();
 }
 
 function duration(seconds) {
@@ -128,19 +295,30 @@ function upload(event) {
     statusLine.className = 'error';
     return;
   }
-  const request = new XMLHttpRequest();
   let body;
+  let target = `${API}/jobs`;
   if (zips.length === 1) {
     // A zip goes as the body; options then travel in the query string.
-    const query = optionsText ? `?options=${encodeURIComponent(optionsText)}` : '';
-    request.open('POST', `${API}/jobs${query}`);
-    request.setRequestHeader('Content-Type', 'application/zip');
+    if (optionsText) target += `?options=${encodeURIComponent(optionsText)}`;
     body = zips[0];
   } else {
-    request.open('POST', `${API}/jobs`);
     body = new FormData();
     if (optionsText) body.append('options', optionsText);
     for (const file of chosenFiles) body.append('images', file, file.name);
+  }
+  sendUpload(target, zips.length === 1 ? 'application/zip' : null, body);
+}
+
+// Sends an upload (XMLHttpRequest, for its upload progress) with the token; after a 401 asks
+// for the token and sends it again.
+function sendUpload(target, type, body) {
+  const statusLine = $('upload-status');
+  const request = new XMLHttpRequest();
+  request.open('POST', target);
+  if (type) request.setRequestHeader('Content-Type', type);
+  const token = storedToken();
+  for (const [name, value] of Object.entries(authHeaders(token))) {
+    request.setRequestHeader(name, value);
   }
   const bar = $('upload-progress');
   bar.hidden = false;
@@ -157,6 +335,13 @@ function upload(event) {
     bar.hidden = true;
     let answer = null;
     try { answer = JSON.parse(request.responseText); } catch (e) { /* not JSON */ }
+    const message = answer && answer.error ? answer.error.message
+                                           : `${request.status} ${request.statusText}`;
+    if (request.status === 401) {
+      statusLine.textContent = 'Waiting for the access token…';
+      tokenAfterRefusal(token, message).then(() => sendUpload(target, type, body));
+      return;
+    }
     if (request.status === 201 && answer) {
       statusLine.textContent = `Job created with ${answer.counts.images} photos.`;
       choose([]);
@@ -164,8 +349,6 @@ function upload(event) {
       refreshJobs();
       select(answer.id);
     } else {
-      const message = answer && answer.error ? answer.error.message
-                                             : `${request.status} ${request.statusText}`;
       statusLine.textContent = `Not accepted: ${message}`;
       statusLine.className = 'error';
       $('submit').disabled = false;
@@ -220,9 +403,10 @@ function select(id) {
     lastEventId = 0;
     shownFilesFor = null;
     $('log').textContent = '';
-    for (const part of ['maps', 'cameras', 'rejected', 'pictures', 'files-list']) {
+    for (const part of ['maps', 'cameras', 'rejected', 'files-list', 'download-status']) {
       $(part).replaceChildren();
     }
+    setPictures();
     closeModel();
     modelMessage('');
   }
@@ -394,7 +578,7 @@ async function renderFiles(job) {
   if (job.state !== 'succeeded') {
     // A restarted job will have new files: list them again when it succeeds.
     shownFilesFor = null;
-    $('pictures').replaceChildren();
+    setPictures();
     $('files-list').replaceChildren();
     modelNotYet(job);
     return;
@@ -427,16 +611,66 @@ async function renderFiles(job) {
                                 : `${dense[1]}: how many photos agree (red: this one only; ` +
                                       'orange to green: 2 and more)';
   };
-  $('pictures').replaceChildren(
+  setPictures(
       el('h3', {}, 'Pictures'),
       el('div', {class: 'pictures'}, pictures.map((f) => el('figure', {},
-          el('a', {href: f.url, target: '_blank'}, el('img', {src: f.url, alt: f.name, loading: 'lazy'})),
-          el('figcaption', {class: 'hint'}, caption(f.name))))));
+          picture(f), el('figcaption', {class: 'hint'}, caption(f.name))))));
   $('files-list').replaceChildren(
       el('h3', {}, 'Files'),
-      el('ul', {}, listing.files.map((f) => el('li', {},
-          el('a', {href: f.url, download: f.name.split('/').pop()}, f.name), ` (${bytes(f.bytes)})`))));
+      el('ul', {}, listing.files.map((f) => {
+        const name = f.name.split('/').pop();
+        return el('li', {}, withToken(el('a', {href: f.url, download: name}, f.name), name),
+                  ` (${bytes(f.bytes)})`);
+      })));
   showModel(job, listing.files);  // Not awaited: the rest of the page does not wait for it.
+}
+
+// The pictures' blob: URLs (with a token), released when the pictures are replaced.
+let pictureUrls = [];
+
+function setPictures(...children) {
+  for (const url of pictureUrls) URL.revokeObjectURL(url);
+  pictureUrls = [];
+  $('pictures').replaceChildren(...children);
+}
+
+// With a token a picture is fetched (with it) once scrolled to, as loading="lazy" would.
+const pictureObserver = 'IntersectionObserver' in window
+    ? new IntersectionObserver((entries) => {
+      for (const entry of entries) {
+        if (!entry.isIntersecting) continue;
+        pictureObserver.unobserve(entry.target);
+        loadPicture(entry.target);
+      }
+    }, {rootMargin: '200px'})
+    : null;
+
+async function loadPicture(img) {
+  let blob;
+  try {
+    const response = await authFetch(img.dataset.src);
+    if (!response.ok) throw new Error(await errorText(response));
+    blob = await response.blob();
+  } catch (e) {
+    img.alt = `${img.alt} (${e.message})`;
+    return;
+  }
+  if (!img.isConnected) return;  // Replaced meanwhile.
+  const url = URL.createObjectURL(blob);
+  pictureUrls.push(url);
+  img.src = url;
+  img.parentElement.href = url;
+}
+
+// A report picture, linked to itself (opens in a new tab).
+function picture(f) {
+  if (!storedToken()) {
+    return el('a', {href: f.url, target: '_blank'}, el('img', {src: f.url, alt: f.name, loading: 'lazy'}));
+  }
+  const img = el('img', {alt: f.name, 'data-src': f.url});
+  if (pictureObserver) pictureObserver.observe(img);
+  else loadPicture(img);
+  return el('a', {target: '_blank'}, img);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -542,7 +776,7 @@ async function showModel(job, files) {
   };
   let shown;
   try {
-    shown = await viewer.open($('model-canvas'), model.url, model.bytes, callbacks);
+    shown = await viewer.open($('model-canvas'), model.url, model.bytes, callbacks, authHeaders());
   } catch (e) {
     if (modelFor === job.id) {
       modelMessage(`The model could not be shown: ${e.message}`, 'error');
@@ -578,7 +812,7 @@ async function refreshLog() {
 async function readEvents() {
   const path = `/jobs/${selectedId}/events?after=${lastEventId}&limit=200`;
   const id = selectedId;
-  const response = await fetch(API + path);
+  const response = await authFetch(API + path);
   if (!response.ok || id !== selectedId) return;
   const text = await response.text();
   if (id !== selectedId) return;
@@ -625,9 +859,11 @@ async function refreshJob() {
   $('job-summary').replaceChildren(el('p', {}, facts), skippedNote, error);
   const actions = [];
   if (job.state === 'succeeded') {
-    actions.push(el('a', {href: job.links.result, download: `reconduit-${job.id.slice(0, 8)}.zip`},
-                    el('button', {type: 'button', class: 'primary'},
-                       `Download result.zip${job.result ? ` (${bytes(job.result.bytes)})` : ''}`)));
+    const name = `reconduit-${job.id.slice(0, 8)}.zip`;
+    actions.push(withToken(el('a', {href: job.links.result, download: name},
+                              el('button', {type: 'button', class: 'primary'},
+                                 `Download result.zip${job.result ? ` (${bytes(job.result.bytes)})` : ''}`)),
+                           name));
   }
   if (!FINAL.has(job.state) && !job.cancel_requested) {
     actions.push(el('button', {type: 'button', onclick: () => act('/cancel', 'POST')}, 'Cancel'));
@@ -664,6 +900,12 @@ function setUp() {
   }
   drop.addEventListener('drop', (e) => { e.preventDefault(); choose(e.dataTransfer.files); });
   $('upload-form').addEventListener('submit', upload);
+  // The service's option list opens in a new tab, with the token when there is one.
+  withToken($('options-link'), null, $('upload-status'));
+  $('token-forget').addEventListener('click', forgetToken);
+  // The page cannot do anything without the token: Escape does not close the dialog.
+  $('token-dialog').addEventListener('cancel', (e) => e.preventDefault());
+  showTokenState();
   $('model-overview').addEventListener('click', async () => {
     if (viewerModule) (await viewerModule).overview();
   });

@@ -99,10 +99,12 @@ class ModelView {
 
   // Loads `url`; onProgress(loaded, total) while it downloads, then resolves with a summary
   // ({faces, cameras}) once it is shown. `bytes` (the file listing's size) stands in for a
-  // missing Content-Length.
-  load(url, bytes, onProgress) {
+  // missing Content-Length. `headers` go with the request (the service's Authorization: three's
+  // loaders fetch with them, so the token never goes in the URL).
+  load(url, bytes, onProgress, headers) {
     this.manager = new THREE.LoadingManager();
     const loader = new GLTFLoader(this.manager);
+    loader.setRequestHeader(headers);
     return new Promise((resolve, reject) => {
       loader.load(url, (gltf) => {
         if (this.disposed) {
@@ -372,12 +374,13 @@ class ModelView {
 
 // Shows `url` (a job's model.glb of `bytes` bytes) in `holder`, replacing the previous view.
 // Resolves with {faces, cameras} once shown; rejects when it cannot be loaded. `callbacks`:
-// onProgress(loaded, total), onSelect(name | null, camera | null).
-export async function open(holder, url, bytes, callbacks) {
+// onProgress(loaded, total), onSelect(name | null, camera | null). `headers`: the request
+// headers to send for the file ({} for none).
+export async function open(holder, url, bytes, callbacks, headers = {}) {
   close();
   const view = new ModelView(holder, callbacks);
   current = view;
-  return view.load(url, bytes, callbacks.onProgress);
+  return view.load(url, bytes, callbacks.onProgress, headers);
 }
 
 // Removes the view (another job was opened, or this one has no model any more).
