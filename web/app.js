@@ -343,11 +343,12 @@ function sendUpload(target, type, body) {
       return;
     }
     if (request.status === 201 && answer) {
-      statusLine.textContent = `Job created with ${answer.counts.images} photos.`;
-      choose([]);
+      choose([]);  // Clears the status line too: the message comes after.
       $('files').value = '';
+      statusLine.textContent = `Job created with ${answer.counts.images} photos.`;
       refreshJobs();
       select(answer.id);
+      pollSoon();
     } else {
       statusLine.textContent = `Not accepted: ${message}`;
       statusLine.className = 'error';
@@ -912,20 +913,39 @@ function setUp() {
   checkHealth();
   if (location.hash.length > 1) select(location.hash.slice(1));
 
-  // Poll quickly while something runs, slowly otherwise.
-  const tick = async () => {
-    let active = true;
-    try {
-      const [jobsActive, jobActive] = await Promise.all([refreshJobs(), refreshJob()]);
-      active = jobsActive || jobActive;
-    } catch (e) {
-      // A lost connection (a server restart): try again at the slow pace.
-      active = false;
-    } finally {
-      setTimeout(tick, active ? 1500 : 8000);
-    }
-  };
   tick();
+}
+
+// Poll quickly while something runs, slowly otherwise; pollSoon() (a new job) goes back to the
+// quick pace at once instead of after the slow pause.
+let tickTimer = null;
+let ticking = false;
+let activeSoon = false;
+
+async function tick() {
+  clearTimeout(tickTimer);
+  ticking = true;
+  activeSoon = false;
+  let active = true;
+  try {
+    const [jobsActive, jobActive] = await Promise.all([refreshJobs(), refreshJob()]);
+    active = jobsActive || jobActive;
+  } catch (e) {
+    // A lost connection (a server restart): try again at the slow pace.
+    active = false;
+  } finally {
+    ticking = false;
+    tickTimer = setTimeout(tick, active || activeSoon ? 1500 : 8000);
+  }
+}
+
+function pollSoon() {
+  if (ticking) {
+    activeSoon = true;
+    return;
+  }
+  clearTimeout(tickTimer);
+  tickTimer = setTimeout(tick, 1500);
 }
 
 setUp();
