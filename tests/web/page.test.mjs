@@ -9,6 +9,10 @@
 // frustum per registered photo, and looking through a photo's camera (a click on its frustum
 // or its name) puts the view at that camera, checked against the file's own camera nodes.
 //
+// A server started with --token (its own, with a worker that runs only the ingest stage): the
+// page asks for the token, asks again after a wrong one, uploads, follows the job and downloads
+// result.zip and a file with it, and never puts it in a URL; "Forget the token" clears it.
+//
 // Run by ctest (tests/CMakeLists.txt), which passes the binaries' paths:
 //   RECONDUIT_SERVER_BINARY, RECONDUIT_WORKER_BINARY, RECONDUIT_WEB_DIR, RECONDUIT_SOURCE_DIR,
 //   and RECONDUIT_TEST_OUTPUT_DIR for the screenshots (default: the system's temporary folder);
@@ -17,6 +21,7 @@
 import {after, before, test} from 'node:test';
 import assert from 'node:assert/strict';
 import {spawn} from 'node:child_process';
+import crypto from 'node:crypto';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -31,6 +36,7 @@ const env = (name) => {
 };
 
 const dataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'reconduit-web-test-'));
+const dataDirs = [dataDir];
 const outDir = process.env.RECONDUIT_TEST_OUTPUT_DIR || os.tmpdir();
 fs.mkdirSync(outDir, {recursive: true});
 const children = [];
@@ -77,7 +83,7 @@ after(async () => {
     if (c.exitCode !== null || c.signalCode !== null) resolve();
     else c.on('exit', resolve);
   })));
-  fs.rmSync(dataDir, {recursive: true, force: true});
+  for (const dir of dataDirs) fs.rmSync(dir, {recursive: true, force: true});
 });
 
 // A page that fails the test on any script error.
@@ -324,6 +330,130 @@ test('serves the page\'s three.js from web/vendor/ only, as JavaScript, the vers
   const version = (lock) => JSON.parse(fs.readFileSync(path.join(env('RECONDUIT_SOURCE_DIR'), lock)))
       .packages['node_modules/three'].version;
   assert.equal(version('web/.deps/package-lock.json'), version('tests/gltf/package-lock.json'));
+});
+
+// ---------------------------------------------------------------------------------------------
+// A service started with --token: the page asks for the token and sends it with every request.
+// A server and worker of its own; the worker runs only the ingest stage (--until ingest), so
+// the job succeeds in a second or two, with a result.zip.
+
+const kermitImages = () => path.join(env('RECONDUIT_SOURCE_DIR'), '..', 'shared', 'datasets',
+                                     'kermit', 'images');
+
+test('with a token: asks for it, asks again after a wrong one, uploads, follows the job and ' +
+     'downloads with it, never puts it in a URL, forgets it', async (t) => {
+  const started = Date.now();
+  const token = `t0ken-${crypto.randomBytes(12).toString('hex')}`;
+  const tokenDir = fs.mkdtempSync(path.join(os.tmpdir(), 'reconduit-web-token-test-'));
+  dataDirs.push(tokenDir);
+  const listening = await start(
+      env('RECONDUIT_SERVER_BINARY'),
+      ['--port', '0', '--data', tokenDir, '--web', env('RECONDUIT_WEB_DIR'), '--token', token],
+      /listening on (http:\/\/\S+)/);
+  const url = listening[1];
+  await start(env('RECONDUIT_WORKER_BINARY'),
+              ['--data', tokenDir, '--poll', '0.2', '--until', 'ingest'], null);
+  const auth = {headers: {Authorization: `Bearer ${token}`}};
+
+  // The page's files and /healthz need no token; the API, and any other path, does.
+  for (const file of ['/', '/index.html', '/app.js', '/viewer.js', '/style.css',
+                      '/vendor/three/build/three.module.js']) {
+    assert.equal((await fetch(url + file)).status, 200, file);
+  }
+  assert.equal((await fetch(`${url}/healthz`)).status, 200);
+  for (const refused of ['/api/v1/jobs', '/metrics', '/missing.js', '/vendor/three/src/Three.js']) {
+    const response = await fetch(url + refused);
+    assert.equal(response.status, 401, refused);
+    assert.equal((await response.json()).error.code, 'unauthorized', refused);
+  }
+
+  const page = await browser.newPage({viewport: {width: 1200, height: 1600}});
+  const errors = [];
+  page.on('pageerror', (error) => errors.push(error.message));
+  page.on('console', (message) => {
+    if (/Content Security Policy/i.test(message.text())) errors.push(message.text());
+  });
+  const requested = [];
+  page.on('request', (request) => requested.push(request.url()));
+  await page.goto(url + '/');
+  await page.waitForSelector('#health.ok');
+
+  // Asked for at the first 401; a wrong token is refused and asked for again, not kept.
+  await page.waitForSelector('#token-dialog[open]');
+  assert.match(await page.textContent('#token-message'), /needs an access token/);
+  assert.equal(await page.isVisible('#token-state'), false);
+  await page.fill('#token-input', 'not-the-token');
+  await page.click('#token-submit');
+  await page.waitForSelector(
+      '#token-dialog[open] #token-message:has-text("refused this token (invalid bearer token)")');
+  assert.equal(await page.evaluate(() => sessionStorage.getItem('reconduit.token')), null);
+  await page.fill('#token-input', token);
+  await page.click('#token-submit');
+  await page.waitForSelector('#token-dialog', {state: 'hidden'});
+  await page.waitForSelector('#jobs-empty:has-text("No jobs yet")');
+  assert.equal(await page.isVisible('#token-state'), true);
+  // Kept for this tab only: sessionStorage, no localStorage, no cookie.
+  assert.equal(await page.evaluate(() => sessionStorage.getItem('reconduit.token')), token);
+  assert.equal(await page.evaluate(() => localStorage.length), 0);
+  assert.deepEqual(await page.context().cookies(), []);
+
+  const images = kermitImages();
+  if (fs.existsSync(images)) {
+    // Upload (XMLHttpRequest), then the job's status and log as they change (fetch).
+    const photos = fs.readdirSync(images).filter((f) => f.endsWith('.jpg')).sort().slice(0, 3)
+                       .map((f) => path.join(images, f));
+    await page.evaluate(() => {
+      const seen = window.badgesSeen = [];
+      new MutationObserver(() => {
+        const badge = document.querySelector('#job-summary .badge');
+        if (badge && seen[seen.length - 1] !== badge.textContent) seen.push(badge.textContent);
+      }).observe(document.getElementById('job-summary'), {childList: true, subtree: true});
+    });
+    await page.setInputFiles('#files', photos);
+    await page.click('#submit');
+    await page.waitForSelector('#upload-status:has-text("Job created with 3 photos")');
+    await page.waitForSelector('#job-summary .badge.succeeded, #job-summary .badge.failed',
+                               {timeout: 30000});
+    assert.match(await page.textContent('#job-summary'), /^succeeded/);
+    assert.equal(await page.textContent('#stage-rows tr[data-stage="ingest"] td:nth-child(2)'),
+                 'success');
+    await page.waitForFunction(() => /queued with 3 photos/.test(document.getElementById('log').textContent));
+    const id = page.url().split('#')[1];
+    const job = await (await fetch(`${url}/api/v1/jobs/${id}`, auth)).json();
+    t.diagnostic(`the page showed the job as: ${(await page.evaluate(() => window.badgesSeen)).join(', ')}; ` +
+                 `it ran ${job.elapsed_seconds} s, from ${job.created_at} to ${job.finished_at}`);
+
+    // result.zip: fetched with the token, saved by the browser; the same bytes as the service's.
+    const [download] = await Promise.all([page.waitForEvent('download'),
+                                          page.click('#job-actions a button')]);
+    assert.equal(download.suggestedFilename(), `reconduit-${id.slice(0, 8)}.zip`);
+    const zip = fs.readFileSync(await download.path());
+    assert.equal(zip.length, job.result.bytes);
+    assert.equal(zip.toString('latin1', 0, 2), 'PK');
+    const direct = Buffer.from(await (await fetch(`${url}${job.links.result}`, auth)).arrayBuffer());
+    assert.ok(zip.equals(direct), 'the downloaded result.zip is the service\'s');
+    // A file of the list likewise.
+    const [report] = await Promise.all([page.waitForEvent('download'),
+                                        page.click('#files-list a:text-is("report.json")')]);
+    assert.equal(report.suggestedFilename(), 'report.json');
+    assert.equal(typeof JSON.parse(fs.readFileSync(await report.path(), 'utf8')), 'object');
+    assert.equal(await page.textContent('#download-status'), '');
+  } else {
+    t.diagnostic(`${images} is absent: the upload and downloads with a token are not tried`);
+  }
+
+  // The token went in headers only.
+  assert.ok(requested.length > 5);
+  assert.deepEqual(requested.filter((u) => u.includes(token)), []);
+
+  // Forgotten: gone from the tab, and the page asks again.
+  await page.click('#token-forget');
+  await page.waitForSelector('#token-dialog[open]');
+  assert.match(await page.textContent('#token-message'), /needs an access token/);
+  assert.equal(await page.evaluate(() => sessionStorage.getItem('reconduit.token')), null);
+  assert.deepEqual(errors, []);
+  await page.close();
+  console.log(`the token test took ${((Date.now() - started) / 1000).toFixed(1)} s`);
 });
 
 // ---------------------------------------------------------------------------------------------
