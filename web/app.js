@@ -74,13 +74,14 @@ function showTokenState() {
 // The open dialog's promise (of the token entered): every refused request waits for the same.
 let tokenAsked = null;
 
-function askToken(message) {
+// `refused`: the message says a token was refused (shown as an error).
+function askToken(message, refused = false) {
   if (tokenAsked) return tokenAsked;
   tokenAsked = new Promise((resolve) => {
     const form = $('token-form');
     const input = $('token-input');
     $('token-message').textContent = message;
-    $('token-message').className = 'error';
+    $('token-message').className = refused ? 'error' : '';
     input.value = '';
     const submit = (event) => {
       event.preventDefault();
@@ -88,6 +89,7 @@ function askToken(message) {
       // What an HTTP header can carry; the service's tokens have no white space either.
       if (!/^[\x21-\x7e]+$/.test(token)) {
         $('token-message').textContent = 'A token is printable ASCII, without spaces.';
+        $('token-message').className = 'error';
         return;
       }
       form.removeEventListener('submit', submit);
@@ -120,7 +122,7 @@ function tokenAfterRefusal(used, reason) {
     sessionStorage.removeItem(TOKEN_KEY);
   } catch (e) { /* nothing kept */ }
   showTokenState();
-  return askToken(`The service refused this token (${reason}). Check it and enter it again.`);
+  return askToken(`The service refused this token (${reason}). Check it and enter it again.`, true);
 }
 
 // fetch with the token; a 401 asks for it (again) and retries. For requests whose body can be
