@@ -130,6 +130,11 @@ std::vector<OptionSpec> MakeSpecs() {
       "texture_page_size", &PipelineOptions::texture_page_size, 256, 16384,
       "Largest side of a texture page, pixels; more pages rather than one huge image. 4096 is "
       "what phone browsers still display."));
+  specs.push_back(BooleanOption(
+      "package_dense_files", &PipelineOptions::package_dense_files,
+      "Put dense.ply and the full-size depth and quality maps (depth/, quality/) in result.zip. "
+      "Off, result.zip is much smaller: the model, the cameras and the report with its "
+      "previews; the left-out files can still be downloaded one by one from the job's files."));
   specs.push_back(IntegerOption("num_threads", &PipelineOptions::num_threads, 0, 256,
                                 "Threads for parallel stages; 0 uses every core."));
   return specs;
@@ -203,7 +208,9 @@ Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text) {
   return ParsePipelineOptions(json);
 }
 
-bool OptionAffectsResults(const std::string& name) { return name != "num_threads"; }
+bool OptionAffectsResults(const std::string& name) {
+  return name != "num_threads" && name != "package_dense_files";
+}
 
 nlohmann::json PipelineOptionsToJson(const PipelineOptions& options) {
   nlohmann::json json = nlohmann::json::object();

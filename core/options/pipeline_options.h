@@ -60,6 +60,10 @@ struct PipelineOptions {
   bool texture = true;
   // Largest side of an atlas page, pixels. [256, 16384]
   int texture_page_size = 4096;
+  // Put the heavy dense files in result.zip: dense.ply and the full-size depth/ and quality/
+  // maps. Off, result.zip keeps the model, the cameras and the report (with the small depth
+  // and quality previews); the service still serves the left-out files one by one. [bool]
+  bool package_dense_files = true;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 
@@ -82,8 +86,9 @@ struct OptionSpec {
 
 const std::vector<OptionSpec>& PipelineOptionSpecs();
 
-// False only for options that change how fast, not what, the pipeline computes (num_threads):
-// changing them does not invalidate finished stages.
+// False for options that change how fast, not what, the pipeline computes (num_threads), and
+// for those only the packaging stage reads (package_dense_files; it runs every time): changing
+// them does not invalidate finished stages.
 bool OptionAffectsResults(const std::string& name);
 
 // {"options": [{"name", "type", "default", "minimum", "maximum", "enum", "help"}, ...]}
