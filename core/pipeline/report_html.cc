@@ -307,7 +307,7 @@ void Page::Photos() {
       "<h2>Photos</h2>\n<p>Depth: red near, blue far, black no depth. Quality: dark red only "
       "this photo has the depth (fusion drops it), orange to green 2 to 7 photos agree.</p>\n"
       "<table>\n<tr><th>photo</th><th>name</th><th>status</th><th>depth</th><th>quality</th>"
-      "<th>depth map</th><th>model</th></tr>\n";
+      "<th>dense</th><th>model</th></tr>\n";
   for (const ReportPhoto& photo : input_.photos) PhotoRow(photo, maps, renders);
   html_ += "</table>\n";
 }
