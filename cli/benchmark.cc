@@ -341,12 +341,24 @@ void PrintTexture(const PipelineResult& result) {
               << " charts on " << t.value("pages", 0) << " pages, " << t.value("unseen_faces", 0)
               << " of " << t.value("faces", 0) << " faces unseen; model.glb "
               << s.value("model", nlohmann::json::object()).value("bytes", 0) << " bytes\n";
+    bool first = true;  // The first photo in sample: the figure.
     for (const nlohmann::json& render : s.value("renders", nlohmann::json::array())) {
-      if (!render["mean_abs_diff"].is_number()) continue;
-      std::cout << "  model vs " << render["name"].get<std::string>() << "   "
-                << 100.0 * render["covered"].get<double>() << " % covered, mean abs. difference "
-                << render["mean_abs_diff"].get<double>() << " (1024 px wide)\n";
-      break;  // The first photo: the figure.
+      const bool held_out = render.value("held_out", false);
+      if (!render["mean_abs_diff"].is_number() || (!held_out && !first)) continue;
+      first = first && held_out;
+      std::cout << "  model vs " << render["name"].get<std::string>()
+                << (held_out ? " (held out)   " : "   ") << 100.0 * render["covered"].get<double>()
+                << " % covered, mean abs. difference " << render["mean_abs_diff"].get<double>()
+                << " (1024 px wide)\n";
+    }
+    for (const char* group : {"in_sample", "held_out"}) {
+      const nlohmann::json& mean = s.value(group, nlohmann::json());
+      if (!mean.is_object() || !mean["mean_abs_diff"].is_number()) continue;
+      std::cout << "  model vs photos "
+                << (group == std::string("held_out") ? "held out " : "in sample") << "  mean over "
+                << mean["photos"].get<int>() << ": " << 100.0 * mean["covered"].get<double>()
+                << " % covered, mean abs. difference " << mean["mean_abs_diff"].get<double>()
+                << "\n";
     }
   }
 }

@@ -13,7 +13,7 @@ namespace po = boost::program_options;
 constexpr char kUsage[] =
     "Usage:\n"
     "  reconduit reconstruct <images_dir> <out_dir> [--until STAGE] [--options FILE]\n"
-    "                        [--work DIR] [--threads N]\n"
+    "                        [--work DIR] [--threads N] [--keep-work]\n"
     "  reconduit options\n"
     "  reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE] [--options FILE]\n"
     "                      [--work DIR] [--threads N] [--resume]\n"
@@ -22,7 +22,9 @@ constexpr char kUsage[] =
     "             photos are reported and skipped) and writes the results to <out_dir>.\n"
     "  --until STAGE   stop after this stage (then export and pack what exists); stages: {stages}\n"
     "  --options FILE  pipeline options as a JSON object (see `reconduit options`)\n"
-    "  --work DIR      intermediate files (default <out_dir>.work); rerunning resumes there\n"
+    "  --work DIR      intermediate files (default <out_dir>.work); rerunning resumes there.\n"
+    "                  Removed after a complete, successful run (without --until) unless\n"
+    "                  --keep-work or the option keep_work_files keeps them.\n"
     "  --threads N     threads for parallel stages (default: all cores)\n"
     "options      prints every pipeline option with its type, default, range and help.\n"
     "benchmark    runs the stages up to --until (default sparse) from scratch and prints "
@@ -59,7 +61,7 @@ po::options_description RunOptions(RunFlags* flags) {
   // The help texts are in Usage(), which lists both commands together.
   options.add_options()("until", po::value(&flags->until))(
       "options", po::value(&flags->options_file))("work", po::value(&flags->work))(
-      "threads", po::value(&flags->threads));
+      "threads", po::value(&flags->threads))("keep-work", po::bool_switch(&flags->keep_work));
   return options;
 }
 

@@ -27,10 +27,11 @@ struct RunFlags {
   std::string until;
   std::string options_file;
   std::string work;
-  int threads = -1;  // -1: as the options say.
+  int threads = -1;        // -1: as the options say.
+  bool keep_work = false;  // reconstruct: keep the work folder after a complete run.
 };
 
-// --until, --options, --work and --threads, bound to *flags.
+// --until, --options, --work, --threads and --keep-work, bound to *flags.
 boost::program_options::options_description RunOptions(RunFlags* flags);
 
 // Parses a command's arguments (after the command's name) with `options`; the arguments that

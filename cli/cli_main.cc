@@ -178,6 +178,18 @@ int Reconstruct(const std::vector<std::string>& arguments) {
   PrintStageTable(result);
   if (result.status == StageStatus::kSuccess) {
     std::cout << "results in " << args.out_dir.string() << "\n";
+    // A run that stopped early (--until) is meant to go on from its work folder.
+    if (args.flags.until.empty() && !args.flags.keep_work && !options->keep_work_files) {
+      std::error_code ec;
+      fs::remove_all(workspace.work_dir, ec);
+      if (ec) {
+        std::cerr << "reconduit: cannot remove the work folder " << workspace.work_dir.string()
+                  << ": " << ec.message() << "\n";
+      } else {
+        std::cout << "work folder " << workspace.work_dir.string()
+                  << " removed (--keep-work keeps it)\n";
+      }
+    }
     return 0;
   }
   std::cerr << "reconduit: stage " << result.failed_stage << " " << StageStatusName(result.status)

@@ -6,8 +6,8 @@
 # everything is already installed (it asks dpkg first and only calls apt-get for what is missing).
 #
 # Usage: docker/install-deps.sh [build|test|runtime]
-#   build (default): runtime + compilers + -dev packages; test: build + what the browser test
-#   needs (chromium, Node.js and npm).
+#   build (default): runtime + compilers + -dev packages + Node.js and npm (for the web page's
+#   modules); test: build + what the browser tests need (chromium).
 set -euo pipefail
 
 mode="${1:-build}"
@@ -39,16 +39,17 @@ test_packages=(chromium)
 case "$mode" in
   runtime) wanted=("${runtime_packages[@]}") ;;
   build) wanted=("${runtime_packages[@]}" "${build_packages[@]}") ;;
-  test)
-    wanted=("${runtime_packages[@]}" "${build_packages[@]}" "${test_packages[@]}")
-    # Node.js and npm: Debian's, unless a node with npm is already installed some other way
-    # (a second one would conflict with it).
-    if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
-      wanted+=(nodejs npm)
-    fi
-    ;;
+  test) wanted=("${runtime_packages[@]}" "${build_packages[@]}" "${test_packages[@]}") ;;
   *) echo "usage: $0 [build|test|runtime]" >&2; exit 2 ;;
 esac
+# Node.js and npm to build and test: npm installs the web page's modules (three.js,
+# scripts/web_deps.sh) and the browser tests' packages. Debian's, unless a node with npm is
+# already installed some other way (a second one would conflict with it).
+if [ "$mode" != runtime ]; then
+  if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+    wanted+=(nodejs npm)
+  fi
+fi
 
 missing=()
 for p in "${wanted[@]}"; do

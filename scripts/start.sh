@@ -15,6 +15,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 bash docker/install-deps.sh build
+# three.js for the page's 3D view, from npm as pinned in web/.deps/package-lock.json.
+bash scripts/web_deps.sh
 cmake --preset release >/dev/null
 cmake --build --preset release --target reconduit-server reconduit-worker
 

@@ -10,6 +10,9 @@ took() { local now; now=$(date +%s); echo "test.sh: $1 took $((now - t0)) s"; t0
 
 bash docker/install-deps.sh test
 took "installing packages"
+# three.js for the page's 3D view (web/.deps/package-lock.json, copied into web/vendor/).
+bash scripts/web_deps.sh
+took "npm ci (web/.deps)"
 # playwright-core for the web page's browser test, as pinned in tests/web/package-lock.json
 # (again only when the lock file is newer than what is installed).
 if [ ! tests/web/node_modules/.package-lock.json -nt tests/web/package-lock.json ]; then

@@ -1,5 +1,6 @@
 // Reconduit's browser page: upload photos, follow jobs, look at the results. Plain JavaScript
-// against the JSON API (README, "Using the API"); no build step, nothing loaded from elsewhere.
+// against the JSON API (README, "Using the API"); no build step, nothing loaded from elsewhere
+// (the 3D view, viewer.js, imports three.js from this server's web/vendor/).
 'use strict';
 
 const API = '/api/v1';
@@ -222,6 +223,8 @@ function select(id) {
     for (const part of ['maps', 'cameras', 'rejected', 'pictures', 'files-list']) {
       $(part).replaceChildren();
     }
+    closeModel();
+    modelMessage('');
   }
   if (location.hash !== `#${id}`) history.replaceState(null, '', `#${id}`);
   $('job').hidden = false;
@@ -240,6 +243,7 @@ async function act(path, method, confirmText) {
   }
   if (method === 'DELETE') {
     selectedId = null;
+    closeModel();
     $('job').hidden = true;
     history.replaceState(null, '', location.pathname);
   } else {
@@ -392,6 +396,7 @@ async function renderFiles(job) {
     shownFilesFor = null;
     $('pictures').replaceChildren();
     $('files-list').replaceChildren();
+    modelNotYet(job);
     return;
   }
   if (shownFilesFor === job.id) return;
@@ -431,6 +436,131 @@ async function renderFiles(job) {
       el('h3', {}, 'Files'),
       el('ul', {}, listing.files.map((f) => el('li', {},
           el('a', {href: f.url, download: f.name.split('/').pop()}, f.name), ` (${bytes(f.bytes)})`))));
+  showModel(job, listing.files);  // Not awaited: the rest of the page does not wait for it.
+}
+
+// ---------------------------------------------------------------------------------------------
+// The 3D view of model.glb (viewer.js, three.js): imported only when a job has a model.
+
+let viewerModule = null;
+let modelFor = null;  // The job whose model is shown or loading.
+
+function loadViewer() {
+  if (!viewerModule) viewerModule = import('./viewer.js');
+  return viewerModule;
+}
+
+// Says why there is no model (or what is happening), without a view.
+function modelMessage(text, className = 'hint') {
+  $('model-status').textContent = text;
+  $('model-status').className = className;
+  $('model-progress').hidden = true;
+  $('model-box').hidden = true;
+  $('model-photo').textContent = '';
+}
+
+async function closeModel() {
+  modelFor = null;
+  if (!viewerModule) return;
+  try {
+    (await viewerModule).close();
+  } catch (e) { /* never loaded: nothing to close */ }
+}
+
+// A job that has not succeeded: what the view will hold, or why it will not.
+function modelNotYet(job) {
+  if (modelFor !== null) closeModel();
+  const stage = job.stage && job.stages && job.stages[job.stage];
+  const texts = {
+    queued: 'The 3D model appears here once the job has succeeded; it is waiting for a worker.',
+    running: 'The 3D model appears here once the job has succeeded; it is running' +
+             (job.stage ? ` (${(stage && stage.title) || job.stage})` : '') + '.',
+    failed: 'The job failed, so there is no 3D model.',
+    canceled: 'The job was canceled, so there is no 3D model.',
+  };
+  modelMessage(texts[job.state] || `The job is ${job.state}: no 3D model yet.`);
+}
+
+function photoFacts(name, camera) {
+  if (!name) return '';
+  const x = camera.userData;
+  const size = x.width && x.height ? `, ${x.width} × ${x.height} px` : '';
+  const focal = typeof x.focal === 'number' ? `, focal length ${x.focal.toFixed(1)} px` : '';
+  return `Seen from ${name}${size}${focal} (${camera.fov.toFixed(1)}° high).`;
+}
+
+// A succeeded job: its model.glb in the view, the photos' cameras as a list beside it.
+async function showModel(job, files) {
+  const model = files.find((f) => f.name === 'model.glb');
+  if (!model) {
+    await closeModel();
+    const stages = job.stages || {};
+    const reasons = ['dense', 'mesh', 'texture']
+        .map((name) => [(stages[name] || {}).title || name, skippedReason(stages[name] || {})])
+        .filter(([, reason]) => reason !== null)
+        .map(([title, reason]) => ` ${title} skipped: ${reason}.`);
+    modelMessage('This job has no 3D model (no model.glb).' +
+                 (reasons.length > 0 ? reasons.join('') : ' Its pipeline did not build one.'));
+    return;
+  }
+  if (modelFor === job.id) return;
+  modelFor = job.id;
+  modelMessage(`Loading the model (${bytes(model.bytes)})…`);
+  const bar = $('model-progress');
+  bar.hidden = false;
+  bar.value = 0;
+  $('model-box').hidden = false;
+  $('model-cameras').replaceChildren();
+  let viewer;
+  try {
+    viewer = await loadViewer();
+  } catch (e) {
+    viewerModule = null;
+    if (modelFor === job.id) {
+      modelMessage(`The 3D view could not start: ${e.message} (its three.js files are missing ` +
+                   'from the server\'s web/vendor/: bash scripts/web_deps.sh installs them).', 'error');
+      modelFor = null;
+    }
+    return;
+  }
+  if (modelFor !== job.id) return;
+  const callbacks = {
+    onProgress: (loaded, total) => {
+      if (modelFor !== job.id) return;
+      bar.value = total > 0 ? Math.min(loaded / total, 1) : 0;
+      $('model-status').textContent = total > 0 && loaded >= total
+          ? 'Preparing the model…'
+          : `Loading the model: ${bytes(loaded)}${total > 0 ? ` of ${bytes(total)}` : ''}`;
+    },
+    onSelect: (name, camera) => {
+      if (modelFor !== job.id) return;
+      $('model-photo').textContent = photoFacts(name, camera);
+      for (const button of $('model-cameras').querySelectorAll('button')) {
+        button.setAttribute('aria-pressed', String(button.dataset.photo === name));
+      }
+    },
+  };
+  let shown;
+  try {
+    shown = await viewer.open($('model-canvas'), model.url, model.bytes, callbacks);
+  } catch (e) {
+    if (modelFor === job.id) {
+      modelMessage(`The model could not be shown: ${e.message}`, 'error');
+      modelFor = null;
+      viewer.close();
+    }
+    return;
+  }
+  if (modelFor !== job.id) return;
+  bar.hidden = true;
+  $('model-status').className = 'hint';
+  $('model-status').textContent =
+      `${shown.faces.toLocaleString('en')} triangles; ${shown.cameras.length} photo ` +
+      `camera${shown.cameras.length === 1 ? '' : 's'}. Drag to turn, scroll to zoom, ` +
+      'right-drag to move; click a camera (or a photo below) to look through it.';
+  $('model-cameras').replaceChildren(...shown.cameras.map((name) => el('li', {},
+      el('button', {type: 'button', 'data-photo': name, 'aria-pressed': 'false',
+                    onclick: () => viewer.lookThrough(name)}, name))));
 }
 
 let logBusy = false;
@@ -534,6 +664,9 @@ function setUp() {
   }
   drop.addEventListener('drop', (e) => { e.preventDefault(); choose(e.dataTransfer.files); });
   $('upload-form').addEventListener('submit', upload);
+  $('model-overview').addEventListener('click', async () => {
+    if (viewerModule) (await viewerModule).overview();
+  });
   checkHealth();
   if (location.hash.length > 1) select(location.hash.slice(1));
 

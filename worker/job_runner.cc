@@ -385,8 +385,28 @@ class JobRun {
         RunJobPipeline(workspace, options, options_.make_stages, cancel_, StoreMirror());
     // Final heartbeat: the lease must still be ours (and long enough) for the last writes.
     Beat();
-    if (result.status == StageStatus::kSuccess) return FinishSucceeded(result);
-    return FinishUnsuccessful(result);
+    if (result.status != StageStatus::kSuccess) return FinishUnsuccessful(result);
+    JobRunReport report = FinishSucceeded(result);
+    // Only once the store has the job as succeeded: until then a new worker may resume it.
+    if (report.outcome == JobRunOutcome::kSucceeded && !options.keep_work_files) {
+      RemoveWorkFiles(workspace.work_dir);
+    }
+    return report;
+  }
+
+  // The intermediate files (features, matches, depth maps, ...) of a succeeded job: they can be
+  // ten times the size of result.zip. A failure to remove them is logged, not an error of the
+  // job.
+  void RemoveWorkFiles(const fs::path& work_dir) {
+    std::error_code ec;
+    const std::uintmax_t removed = fs::remove_all(work_dir, ec);
+    if (ec) {
+      LOG_WARNING << "job " << job_.id << ": cannot remove its work files " << work_dir << ": "
+                  << ec.message();
+    } else {
+      LOG_INFO << "job " << job_.id << ": removed " << removed
+               << " work files (the option keep_work_files keeps them)";
+    }
   }
 
   // ---- Heartbeat ----

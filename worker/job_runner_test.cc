@@ -133,7 +133,7 @@ class JobRunnerTest : public ::testing::Test {
 };
 
 TEST_F(JobRunnerTest, RealStagesSucceedWithResultArchive) {
-  const std::string id = CreateJob();
+  const std::string id = CreateJob({{"keep_work_files", true}});  // Read below.
   // The real stages up to matching, then packaging. (The stages after matching are still being
   // written and do not yet reconstruct these renders; the worker runs whatever it is given.)
   JobRunner runner(*store_, Options(StagesUntil("matching")));
@@ -247,8 +247,25 @@ TEST_F(JobRunnerTest, ThrowingStageFailsTheJobNotTheWorker) {
   EXPECT_EQ(Get(next).state, JobState::kSucceeded);
 }
 
-TEST_F(JobRunnerTest, ResumeSkipsStagesFinishedEarlier) {
+TEST_F(JobRunnerTest, WorkFilesAreRemovedAfterSuccessOnly) {
   const std::string id = CreateJob();
+  {
+    JobRunner runner(*store_, Options(MakeRealStagesThenThrow("ingest")));
+    ASSERT_EQ(runner.Run(Claim(id)).outcome, JobRunOutcome::kFailed);
+  }
+  EXPECT_TRUE(fs::exists(layout_.WorkDir(id) / "ingest" / "stage.json")) << "kept to resume";
+  ASSERT_TRUE(store_->RestartJob(id).ok());
+  JobRunner runner(*store_, Options(StagesUntil("features")));
+  const JobRunReport report = runner.Run(Claim(id));
+  ASSERT_EQ(report.outcome, JobRunOutcome::kSucceeded) << report.stage << ": " << report.message;
+  EXPECT_THAT(report.resumed_stages, ElementsAre("ingest"));
+  EXPECT_FALSE(fs::exists(layout_.WorkDir(id)));
+  EXPECT_TRUE(fs::exists(layout_.ResultZip(id)));
+  EXPECT_TRUE(fs::exists(layout_.OutputDir(id) / "report.json"));
+}
+
+TEST_F(JobRunnerTest, ResumeSkipsStagesFinishedEarlier) {
+  const std::string id = CreateJob({{"keep_work_files", true}});  // Its markers are read below.
   {
     // First run: the real ingest and features, then a stage that throws.
     JobRunner runner(*store_, Options(MakeRealStagesThenThrow("features")));

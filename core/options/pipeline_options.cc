@@ -1,5 +1,6 @@
 #include "core/options/pipeline_options.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -78,6 +79,35 @@ OptionSpec ChoiceOption(std::string name,
   return spec;
 }
 
+// A list of names (strings of 1 to 255 bytes), at most `max_items`, no duplicates.
+OptionSpec NameListOption(std::string name,
+                          std::vector<std::string> PipelineOptions::*field,
+                          std::size_t max_items,
+                          std::string help) {
+  OptionSpec spec{
+      std::move(name), "array", std::move(help), std::nullopt, std::nullopt, {}, {}, {}};
+  spec.get = [field](const PipelineOptions& o) { return nlohmann::json(o.*field); };
+  spec.set = [field, name = spec.name, max_items](const nlohmann::json& j,
+                                                  PipelineOptions* o) -> std::string {
+    const std::string expected = "option '" + name + "' must be a list of at most " +
+                                 std::to_string(max_items) + " distinct names";
+    if (!j.is_array() || j.size() > max_items) return expected + ", got " + j.dump();
+    std::vector<std::string> names;
+    for (const nlohmann::json& item : j) {
+      if (!item.is_string() || item.get<std::string>().empty() ||
+          item.get<std::string>().size() > 255) {
+        return expected + " (strings of 1 to 255 bytes), got " + item.dump();
+      }
+      if (std::find(names.begin(), names.end(), item.get<std::string>()) != names.end())
+        return expected + "; " + item.dump() + " appears twice";
+      names.push_back(item.get<std::string>());
+    }
+    o->*field = std::move(names);
+    return "";
+  };
+  return spec;
+}
+
 std::vector<OptionSpec> MakeSpecs() {
   std::vector<OptionSpec> specs;
   specs.push_back(IntegerOption("min_image_side", &PipelineOptions::min_image_side, 16, 10000,
@@ -130,6 +160,16 @@ std::vector<OptionSpec> MakeSpecs() {
       "texture_page_size", &PipelineOptions::texture_page_size, 256, 16384,
       "Largest side of a texture page, pixels; more pages rather than one huge image. 4096 is "
       "what phone browsers still display."));
+  specs.push_back(NameListOption(
+      "held_out_photos", &PipelineOptions::held_out_photos, 1000,
+      "Photos (names as uploaded) that get cameras but are left out of dense matching and "
+      "texturing; the model rendered through their cameras is compared with them in the "
+      "report, which shows how well the model predicts a view it was not made from."));
+  specs.push_back(BooleanOption(
+      "keep_work_files", &PipelineOptions::keep_work_files,
+      "Keep the intermediate files (features, matches, depth maps) after the job succeeds, "
+      "e.g. to rerun later stages with other options without starting over. By default they "
+      "are removed once result.zip is written."));
   specs.push_back(BooleanOption(
       "package_dense_files", &PipelineOptions::package_dense_files,
       "Put dense.ply and the full-size depth and quality maps (depth/, quality/) in result.zip. "
@@ -209,7 +249,7 @@ Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text) {
 }
 
 bool OptionAffectsResults(const std::string& name) {
-  return name != "num_threads" && name != "package_dense_files";
+  return name != "num_threads" && name != "keep_work_files" && name != "package_dense_files";
 }
 
 nlohmann::json PipelineOptionsToJson(const PipelineOptions& options) {

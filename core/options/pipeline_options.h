@@ -60,6 +60,14 @@ struct PipelineOptions {
   bool texture = true;
   // Largest side of an atlas page, pixels. [256, 16384]
   int texture_page_size = 4096;
+  // Photos (names as uploaded, e.g. "0004.jpg") that get cameras but are left out of dense
+  // matching and texturing, so that the model rendered through their cameras shows how well it
+  // predicts a view it was not made from (the texture stage's "renders", report.json). At most
+  // 1000 names. [list of photo names]
+  std::vector<std::string> held_out_photos;
+  // Keep the intermediate work files (features, matches, depth maps, ...) after a job succeeds;
+  // by default they are removed then (a failed or canceled job keeps them, to resume). [bool]
+  bool keep_work_files = false;
   // Put the heavy dense files in result.zip: dense.ply and the full-size depth/ and quality/
   // maps. Off, result.zip keeps the model, the cameras and the report (with the small depth
   // and quality previews); the service still serves the left-out files one by one. [bool]
@@ -74,7 +82,8 @@ struct PipelineOptions {
 // One option's metadata and accessors.
 struct OptionSpec {
   std::string name;
-  std::string type;  // "integer", "number", "boolean" or "string" (JSON Schema names).
+  // "integer", "number", "boolean", "string" or "array" (of strings) (JSON Schema names).
+  std::string type;
   std::string help;
   std::optional<double> minimum;     // Inclusive, for numbers.
   std::optional<double> maximum;     // Inclusive, for numbers.
@@ -86,9 +95,10 @@ struct OptionSpec {
 
 const std::vector<OptionSpec>& PipelineOptionSpecs();
 
-// False for options that change how fast, not what, the pipeline computes (num_threads), and
-// for those only the packaging stage reads (package_dense_files; it runs every time): changing
-// them does not invalidate finished stages.
+// False for options that change how fast, not what, the pipeline computes (num_threads),
+// what is kept afterwards (keep_work_files), or only what the packaging stage packs
+// (package_dense_files; it runs every time): changing them does not invalidate finished
+// stages.
 bool OptionAffectsResults(const std::string& name);
 
 // {"options": [{"name", "type", "default", "minimum", "maximum", "enum", "help"}, ...]}

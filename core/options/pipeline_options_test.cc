@@ -54,6 +54,11 @@ TEST(ParsePipelineOptions, RejectsBadInputWithClearMessages) {
            {R"({"principal_point": "free"})",
             "option 'principal_point' must be one of auto, center, refine; got \"free\""},
            {R"({"principal_point": true})", "option 'principal_point' must be one of"},
+           {R"({"held_out_photos": "0001.jpg"})",
+            "option 'held_out_photos' must be a list of at most 1000 distinct names"},
+           {R"({"held_out_photos": [""]})", "strings of 1 to 255 bytes"},
+           {R"({"held_out_photos": [3]})", "strings of 1 to 255 bytes"},
+           {R"({"held_out_photos": ["a.jpg", "a.jpg"]})", "\"a.jpg\" appears twice"},
        }) {
     auto options = ParsePipelineOptionsText(c.text);
     ASSERT_FALSE(options.ok()) << c.text;
@@ -111,10 +116,30 @@ TEST(PipelineOptionsToJson, RoundTrips) {
   PipelineOptions options;
   options.num_threads = 3;
   options.use_exif = false;
+  options.held_out_photos = {"0004.jpg", "dir/photo 7.JPG"};
   auto parsed = ParsePipelineOptions(PipelineOptionsToJson(options));
   ASSERT_TRUE(parsed.ok());
   EXPECT_EQ(parsed->num_threads, 3);
   EXPECT_FALSE(parsed->use_exif);
+  EXPECT_EQ(parsed->held_out_photos, options.held_out_photos);
+}
+
+TEST(ParsePipelineOptions, HeldOutPhotosAreAListOfNames) {
+  auto options = ParsePipelineOptionsText(R"({"held_out_photos": ["0001.jpg", "0007.jpg"]})");
+  ASSERT_TRUE(options.ok()) << options.status();
+  EXPECT_EQ(options->held_out_photos, (std::vector<std::string>{"0001.jpg", "0007.jpg"}));
+  EXPECT_TRUE(PipelineOptions().held_out_photos.empty());
+  nlohmann::json many = nlohmann::json::array();
+  for (int i = 0; i <= 1000; ++i) many.push_back(std::to_string(i) + ".jpg");
+  EXPECT_FALSE(ParsePipelineOptions({{"held_out_photos", many}}).ok());
+  many.erase(many.begin());
+  EXPECT_TRUE(ParsePipelineOptions({{"held_out_photos", many}}).ok());
+  for (const nlohmann::json& option : DescribePipelineOptions()["options"]) {
+    if (option["name"] == "held_out_photos") {
+      EXPECT_EQ(option["type"], "array");
+      EXPECT_EQ(option["default"], nlohmann::json::array());
+    }
+  }
 }
 
 // Options that only change speed or what the packaging stage packs leave finished stages

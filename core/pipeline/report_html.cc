@@ -286,8 +286,12 @@ void Page::Renders() {
     const std::string photo = Text(Field(render, "photo_picture"));
     if (picture.empty() && photo.empty()) continue;
     const std::string name = HtmlEscape(Text(Field(render, "name")));
-    html_ += "<h3>" + name + ": covered " + Percent(Field(render, "covered")) + ", difference " +
-             Fixed(Number(Field(render, "mean_abs_diff")), 1) + "</h3>\n<div class=\"pair\">" +
+    const std::string held_out = Field(render, "held_out") == json(true)
+                                     ? " (held out of dense matching and texturing)"
+                                     : "";
+    html_ += "<h3>" + name + held_out + ": covered " + Percent(Field(render, "covered")) +
+             ", difference " + Fixed(Number(Field(render, "mean_abs_diff")), 1) +
+             "</h3>\n<div class=\"pair\">" +
              Picture(picture, "the model seen from " + Text(Field(render, "name")), 512) +
              Picture(photo, Text(Field(render, "name")), 512) + "</div>\n";
   }

@@ -148,6 +148,7 @@ TEST(RenderReportHtml, ShowsRendersBesideTheirPhotos) {
                             {"renders",
                              {{{"name", "a.jpg"},
                                {"image_id", 0},
+                               {"held_out", true},
                                {"covered", 0.587},
                                {"mean_abs_diff", 17.34},
                                {"render_picture", "report/texture/a_render.jpg"},
@@ -156,7 +157,9 @@ TEST(RenderReportHtml, ShowsRendersBesideTheirPhotos) {
   input.files.insert("report/texture/a_render.jpg");
   input.files.insert("report/texture/a_photo.jpg");
   const std::string html = RenderReportHtml(input);
-  EXPECT_NE(html.find("<h3>a.jpg: covered 58.7 %, difference 17.3</h3>"), std::string::npos);
+  EXPECT_NE(html.find("<h3>a.jpg (held out of dense matching and texturing): covered 58.7 %, "
+                      "difference 17.3</h3>"),
+            std::string::npos);
   const auto render = html.find("<img src=\"./report/texture/a_render.jpg\"");
   const auto photo = html.find("<img src=\"./report/texture/a_photo.jpg\"");
   ASSERT_NE(render, std::string::npos);

@@ -116,6 +116,17 @@ class Reconstruction {
     points.erase(it);
   }
 
+  // Removes a registered image and its observations; points left with fewer than two
+  // observations go too. Its camera stays (other images may share it).
+  void DeleteImage(int image_id) {
+    const RegisteredImage& image = images.at(image_id);
+    for (std::size_t k = 0; k < image.point_for_keypoint.size(); ++k) {
+      const int point_id = image.point_for_keypoint[k];
+      if (point_id != kInvalidId) DeleteObservation(point_id, {image_id, static_cast<int>(k)});
+    }
+    images.erase(image_id);
+  }
+
   // Reprojection error of one observation in pixels; infinity behind the camera.
   double ReprojectionError(const Point3D& point, const Observation& o) const {
     const RegisteredImage& image = images.at(o.image_id);

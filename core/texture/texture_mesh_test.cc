@@ -1,6 +1,7 @@
 #include "core/texture/texture_mesh.h"
 
 #include "core/scene/render.h"
+#include "core/texture/rasterize.h"
 #include "core/texture/render_textured_mesh.h"
 #include "core/texture/texture_test_util.h"
 #include "core/util/logging.h"
@@ -358,6 +359,42 @@ TEST(TextureMesh, LevelsABrighterPhoto) {
   off.level_seams = false;
   const TextureResult unlevelled = TextureMesh(panel.mesh, views, off, nullptr, CancelToken());
   EXPECT_EQ(unlevelled.summary.num_seam_samples, 0);
+
+  // Levelling moves charts relative to each other, not the texture as a whole: the offsets
+  // (levelled minus unlevelled texel at each face's centroid), weighted by each face's area in
+  // its photo, average to zero, so the texture keeps the photos' average colour. (A zero mean
+  // over charts instead let many small charts shift the big ones: fountain-P11 came out 5 grey
+  // levels brighter than its photos.)
+  Eigen::Vector3d weighted_offset = Eigen::Vector3d::Zero();
+  double total_area = 0.0;
+  for (std::size_t f = 0; f < panel.mesh.faces.size(); ++f) {
+    const int view = result.face_views[f];
+    ASSERT_EQ(view, unlevelled.face_views[f]);
+    if (view < 0) continue;
+    Eigen::Vector2d pixels[3];
+    for (int k = 0; k < 3; ++k) {
+      pixels[k] = *texture_internal::ProjectChecked(
+          views[view].camera,
+          views[view].cam_from_world * panel.mesh.positions[panel.mesh.faces[f][k]].cast<double>());
+    }
+    const Eigen::Vector2d e1 = pixels[1] - pixels[0], e2 = pixels[2] - pixels[0];
+    const double area = 0.5 * std::abs(e1.x() * e2.y() - e1.y() * e2.x());
+    const auto texel = [f](const TriangleMesh& mesh) {
+      const Eigen::Vector2f uv =
+          (mesh.texcoords[3 * f] + mesh.texcoords[3 * f + 1] + mesh.texcoords[3 * f + 2]) / 3.0f;
+      const cv::Mat& page = mesh.texture_pages[mesh.face_pages[f]];
+      const cv::Vec3b c = page.at<cv::Vec3b>(static_cast<int>(uv.y() * page.rows),
+                                             static_cast<int>(uv.x() * page.cols));
+      return Eigen::Vector3d(c[0], c[1], c[2]);
+    };
+    weighted_offset += area * (texel(result.mesh) - texel(unlevelled.mesh));
+    total_area += area;
+  }
+  ASSERT_GT(total_area, 0.0);
+  weighted_offset /= total_area;
+  std::printf("area-weighted mean offset %.2f %.2f %.2f\n", weighted_offset[0], weighted_offset[1],
+              weighted_offset[2]);
+  EXPECT_LT(weighted_offset.cwiseAbs().maxCoeff(), 0.5);
 }
 
 TEST(TextureMesh, SmallPagesMakeMorePagesWithinThePageSize) {

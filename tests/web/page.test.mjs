@@ -5,10 +5,15 @@
 // the end, look at the cameras, pictures, files and log, then delete the job; and the errors
 // a person can make: a zip together with photos, a file that is not a photo.
 //
+// The finished job's 3D view: model.glb loads with progress, the WebGL canvas shows it, one
+// frustum per registered photo, and looking through a photo's camera (a click on its frustum
+// or its name) puts the view at that camera, checked against the file's own camera nodes.
+//
 // Run by ctest (tests/CMakeLists.txt), which passes the binaries' paths:
-//   RECONDUIT_SERVER_BINARY, RECONDUIT_WORKER_BINARY, RECONDUIT_WEB_DIR, RECONDUIT_SOURCE_DIR;
+//   RECONDUIT_SERVER_BINARY, RECONDUIT_WORKER_BINARY, RECONDUIT_WEB_DIR, RECONDUIT_SOURCE_DIR,
+//   and RECONDUIT_TEST_OUTPUT_DIR for the screenshots (default: the system's temporary folder);
 //   RECONDUIT_CHROMIUM overrides /usr/bin/chromium. `npm ci` in this folder installs
-//   playwright-core (scripts/test.sh does it).
+//   playwright-core, and scripts/web_deps.sh the page's three.js (scripts/test.sh does both).
 import {after, before, test} from 'node:test';
 import assert from 'node:assert/strict';
 import {spawn} from 'node:child_process';
@@ -28,6 +33,8 @@ const env = (name) => {
 };
 
 const dataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'reconduit-web-test-'));
+const outDir = process.env.RECONDUIT_TEST_OUTPUT_DIR || os.tmpdir();
+fs.mkdirSync(outDir, {recursive: true});
 const children = [];
 let baseUrl;
 let browser;
@@ -59,7 +66,9 @@ before(async () => {
   await start(env('RECONDUIT_WORKER_BINARY'), ['--data', dataDir, '--poll', '0.2'], null);
   browser = await chromium.launch({
     executablePath: process.env.RECONDUIT_CHROMIUM || '/usr/bin/chromium',
-    args: ['--no-sandbox'],
+    // WebGL for the 3D view without a GPU: SwiftShader (as tests/gltf).
+    args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+           '--ignore-gpu-blocklist'],
   });
 });
 
@@ -118,6 +127,7 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
                      .map((f) => path.join(images, f));
   assert.equal(photos.length, 11);
   const {page, errors} = await openPage();
+  await recordModelStatus(page);
   await page.setInputFiles('#files', photos);
   assert.match(await page.textContent('#drop-text'), /^11 files/);
   // Depth maps at 320 px keep the test short (11 maps of 640 x 480 photos take minutes). The
@@ -167,10 +177,12 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   assert.equal(zip.headers.get('content-type'), 'application/zip');
   await checkReport(Buffer.from(await zip.arrayBuffer()));
   assert.match(await page.textContent('#log'), /queued with 11 photos/);
-  await page.screenshot({path: path.join(os.tmpdir(), 'reconduit-web-test.png'), fullPage: true});
+  await page.screenshot({path: path.join(outDir, 'reconduit-web-test.png'), fullPage: true});
+
+  const id = page.url().split('#')[1];
+  await checkModelView(page, id);
 
   // Delete: the job leaves the list and the service.
-  const id = page.url().split('#')[1];
   await page.click('#job-actions button:has-text("Delete")');
   await page.waitForSelector('#job', {state: 'hidden'});
   assert.equal((await fetch(`${baseUrl}/api/v1/jobs/${id}`)).status, 404);
@@ -206,6 +218,147 @@ async function checkReport(zipBytes) {
   assert.match(text, /kermit000\.jpg: covered \d+\.\d %, difference \d+\.\d/);
   assert.match(text, /Left out of this archive \(option package_dense_files\): dense\.ply, depth\/, quality\//);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The 3D view
+
+// Keeps every text the 3D view's status line shows, in window.modelStatusTexts.
+function recordModelStatus(page) {
+  return page.evaluate(() => {
+    const status = document.getElementById('model-status');
+    const seen = window.modelStatusTexts = [];
+    new MutationObserver(() => seen.push(status.textContent))
+        .observe(status, {childList: true, characterData: true, subtree: true});
+  });
+}
+
+// The camera nodes of a GLB file: [{name, translation}] (the JSON chunk, read here in node).
+function glbCameraNodes(buffer) {
+  assert.equal(buffer.toString('ascii', 0, 4), 'glTF');
+  const length = buffer.readUInt32LE(12);
+  assert.equal(buffer.toString('ascii', 16, 20), 'JSON');
+  const json = JSON.parse(buffer.toString('utf8', 20, 20 + length));
+  return json.nodes.filter((n) => n.camera !== undefined)
+      .map((n) => ({name: n.name, translation: n.translation,
+                    yfov: json.cameras[n.camera].perspective.yfov,
+                    aspect: json.cameras[n.camera].perspective.aspectRatio}));
+}
+
+// What viewer.js reports of the open view (the same module instance the page imported).
+const viewState = (page) => page.evaluate(async () => {
+  const view = (await import('./viewer.js')).inspect();
+  return view && view.state();
+});
+
+function assertNear(actual, expected, tolerance, what) {
+  assert.equal(actual.length, expected.length, what);
+  for (let i = 0; i < expected.length; ++i) {
+    assert.ok(Math.abs(actual[i] - expected[i]) <= tolerance,
+              `${what}: ${JSON.stringify(actual)} is not ${JSON.stringify(expected)}`);
+  }
+}
+
+// The view looks through the photo `node` (from the file): at its centre, with its fov/aspect.
+async function assertLooksThrough(page, node) {
+  await page.waitForFunction(async (name) =>
+      (await import('./viewer.js')).inspect().state().selected === name, node.name);
+  const state = await viewState(page);
+  assertNear(state.view.position, node.translation, 1e-9, `the view at ${node.name}`);
+  assert.ok(Math.abs(state.view.fov - node.yfov * 180 / Math.PI) < 1e-9, 'the photo\'s yfov');
+  assert.ok(Math.abs(state.view.aspect - node.aspect) < 1e-12, 'the photo\'s aspect');
+  assert.match(await page.textContent('#model-photo'),
+               new RegExp(`^Seen from ${node.name.replaceAll('.', '\\.')}, 640 × 480 px`));
+  assert.equal(await page.getAttribute(`#model-cameras button[data-photo="${node.name}"]`,
+                                       'aria-pressed'), 'true');
+}
+
+async function checkModelView(page, id) {
+  const started = Date.now();
+  // While the job ran the view said why it was empty; then the download showed its progress.
+  const model = await fetch(`${baseUrl}/api/v1/jobs/${id}/files/model.glb`);
+  assert.equal(model.status, 200);
+  const nodes = glbCameraNodes(Buffer.from(await model.arrayBuffer()));
+  const job = await (await fetch(`${baseUrl}/api/v1/jobs/${id}`)).json();
+  assert.equal(nodes.length, job.counts.registered, 'one camera node per registered photo');
+  await page.waitForFunction(() => /triangles/.test(document.getElementById('model-status').textContent),
+                             null, {timeout: 30000});
+  const texts = await page.evaluate(() => window.modelStatusTexts);
+  assert.ok(texts.some((t) => /^The 3D model appears here once the job has succeeded; it is (waiting|running)/.test(t)),
+            JSON.stringify(texts.slice(0, 5)));
+  assert.ok(texts.some((t) => /^Loading the model: [\d.]+ (B|KiB|MiB) of \d+\.\d MiB$/.test(t)),
+            JSON.stringify(texts.filter((t) => /Loading/.test(t))));
+  assert.match(await page.textContent('#model-status'), /^[\d,]+ triangles; 11 photo cameras\./);
+
+  // A frustum per registered photo, at the file's camera centres; the canvas shows the model.
+  let state = await viewState(page);
+  assert.equal(state.frusta, job.counts.registered);
+  assert.deepEqual(state.cameras.map((c) => c.name), nodes.map((n) => n.name).sort());
+  for (const node of nodes) {
+    assertNear(state.cameras.find((c) => c.name === node.name).position, node.translation, 1e-9,
+               node.name);
+  }
+  assert.equal(state.selected, null);
+  const pixels = await page.evaluate(async () => (await import('./viewer.js')).inspect().pixels());
+  const share = pixels.nonBackground / (pixels.width * pixels.height);
+  assert.ok(share > 0.03, `only ${(share * 100).toFixed(2)} % of the canvas is not background`);
+  assert.ok(pixels.colours > 100, `only ${pixels.colours} colours: not the textured model`);
+  await page.locator('#model').scrollIntoViewIfNeeded();
+  await page.locator('#model').screenshot({path: path.join(outDir, 'reconduit-web-test-3d.png')});
+
+  // A click on a frustum (the one farthest on screen from the others, so that none hides it)
+  // looks through that photo's camera.
+  const points = await page.evaluate(async (names) => {
+    const view = (await import('./viewer.js')).inspect();
+    return names.map((name) => ({name, ...view.screenPoint(name)}));
+  }, state.cameras.map((c) => c.name));
+  const spacing = (p) => Math.min(...points.filter((q) => q !== p)
+                                            .map((q) => Math.hypot(p.x - q.x, p.y - q.y)));
+  const lone = points.reduce((best, p) => (spacing(p) > spacing(best) ? p : best));
+  await page.mouse.click(lone.x, lone.y);
+  await assertLooksThrough(page, nodes.find((n) => n.name === lone.name));
+  await page.locator('#model').screenshot({path: path.join(outDir, 'reconduit-web-test-3d-camera.png')});
+
+  // Choosing a photo in the list does the same.
+  const other = nodes.find((n) => n.name !== lone.name);
+  await page.click(`#model-cameras button[data-photo="${other.name}"]`);
+  await assertLooksThrough(page, other);
+
+  // Dragging leaves the photo's view (and its frustum shows again); "Whole scene" goes back.
+  const canvas = await page.locator('#model-canvas canvas').boundingBox();
+  await page.mouse.move(canvas.x + canvas.width / 2, canvas.y + canvas.height / 2);
+  await page.mouse.down();
+  await page.mouse.move(canvas.x + canvas.width / 2 + 60, canvas.y + canvas.height / 2, {steps: 4});
+  await page.mouse.up();
+  state = await viewState(page);
+  assert.equal(state.selected, null);
+  assert.equal(await page.textContent('#model-photo'), '');
+  await page.click('#model-overview');
+  state = await viewState(page);
+  assert.equal(state.frusta, job.counts.registered);
+  for (const node of nodes) {
+    assert.ok(Math.hypot(...state.view.position.map((v, i) => v - node.translation[i])) > 0.1,
+              'the whole scene is seen from outside the cameras');
+  }
+  console.log(`the 3D view's checks took ${((Date.now() - started) / 1000).toFixed(1)} s; the ` +
+              `whole scene covered ${(share * 100).toFixed(1)} % of the canvas in ` +
+              `${pixels.colours} colours`);
+}
+
+test('serves the page\'s three.js from web/vendor/ only, as JavaScript, the version tests/gltf pins',
+     async () => {
+  const module = await fetch(`${baseUrl}/vendor/three/build/three.module.js`);
+  assert.equal(module.status, 200);
+  assert.equal(module.headers.get('content-type'), 'text/javascript; charset=utf-8');
+  for (const addon of ['loaders/GLTFLoader.js', 'controls/OrbitControls.js']) {
+    assert.equal((await fetch(`${baseUrl}/vendor/three/examples/jsm/${addon}`)).status, 200, addon);
+  }
+  // The npm folder itself is not served, nor what the page does not load.
+  assert.equal((await fetch(`${baseUrl}/.deps/node_modules/three/build/three.module.js`)).status, 400);
+  assert.equal((await fetch(`${baseUrl}/vendor/three/src/Three.js`)).status, 404);
+  const version = (lock) => JSON.parse(fs.readFileSync(path.join(env('RECONDUIT_SOURCE_DIR'), lock)))
+      .packages['node_modules/three'].version;
+  assert.equal(version('web/.deps/package-lock.json'), version('tests/gltf/package-lock.json'));
+});
 
 // ---------------------------------------------------------------------------------------------
 // What the page makes of a job's stage figures, from jobs the service could not produce on
@@ -304,6 +457,10 @@ test('shows each stage\'s time, own peak memory and the process\'s, and the per-
   // The running stage: the memory in use now.
   assert.equal(await page.textContent('#stage-rows tr[data-stage="export"] td:nth-child(5)'),
                '200.0 MiB now');
+  // No model yet, and the 3D view says so.
+  assert.equal(await page.textContent('#model-status'),
+               'The 3D model appears here once the job has succeeded; it is running (Writing results).');
+  assert.equal(await page.isVisible('#model-canvas'), false);
 
   // The per-map table: 20 maps start collapsed, open on a click, and stay open.
   const details = '#maps details[data-stage="dense"]';
@@ -319,7 +476,7 @@ test('shows each stage\'s time, own peak memory and the process\'s, and the per-
                    ['IMG_19.jpg', '3.9 s', '69 %', '25 %']);
   await waitForFetches(fetches, fetches.job + 2);
   assert.equal(await page.$eval(details, (d) => d.open), true, 'a refresh keeps it open');
-  await page.screenshot({path: path.join(os.tmpdir(), 'reconduit-web-test-stages.png'),
+  await page.screenshot({path: path.join(outDir, 'reconduit-web-test-stages.png'),
                          fullPage: true});
   assert.deepEqual(errors, []);
   await page.close();
@@ -382,6 +539,12 @@ test('a skipped stage shows as skipped with its reason, in its row and the job\'
     // The other stages succeeded as usual.
     assert.equal((await cellTexts(page, '#stage-rows tr td:nth-child(2)'))
                      .filter((status) => status === 'success').length, 7);
+    // The job has no model.glb, and the 3D view says why.
+    await page.waitForSelector('#model-status:has-text("no 3D model")');
+    assert.equal(await page.textContent('#model-status'),
+                 'This job has no 3D model (no model.glb). Dense matching skipped: too few ' +
+                 'registered photos (2; at least 3).');
+    assert.equal(await page.isVisible('#model-canvas'), false);
     assert.deepEqual(errors, []);
     await page.close();
   }

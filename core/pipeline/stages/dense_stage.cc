@@ -11,6 +11,7 @@
 #include "core/mvs/mvs_view.h"
 #include "core/mvs/patch_match.h"
 #include "core/mvs/view_selection.h"
+#include "core/pipeline/held_out.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
@@ -333,16 +334,26 @@ nlohmann::json SparseToDense(const Reconstruction& model, const DenseCloud& clou
 StageResult DenseStage::Run(StageContext& context) const {
   if (!context.options.dense_matching)
     return StageResult::Skipped("dense", "turned off (option dense_matching)");
-  auto model = ReadReconstructionJson(context.workspace.StageDir("sparse") / "model_0.json");
-  if (!model.ok()) return StageResult::Failed(model.status().message());
-  if (model->images.size() < 2)
-    return StageResult::Skipped("dense", "fewer than two photos have cameras: nothing to match");
+  auto sparse = ReadReconstructionJson(context.workspace.StageDir("sparse") / "model_0.json");
+  if (!sparse.ok()) return StageResult::Failed(sparse.status().message());
   auto images = ReadIngestedImages(context.workspace);
   if (!images.ok()) return StageResult::Failed(images.status().message());
+  const std::vector<std::string>& held_out = context.options.held_out_photos;
+  std::vector<std::string> names;
+  for (const IngestedImage& image : *images) names.push_back(image.name);
+  if (Status s = CheckHeldOutPhotos(held_out, names); !s.ok())
+    return StageResult::Failed(s.message());
+  const Reconstruction model = WithoutHeldOutPhotos(*sparse, held_out);
+  if (model.images.size() < 2) {
+    return StageResult::Skipped(
+        "dense", held_out.empty() ? "fewer than two photos have cameras: nothing to match"
+                                  : "fewer than two photos that are not held out have "
+                                    "cameras: nothing to match");
+  }
   std::map<int, fs::path> paths;
   for (const IngestedImage& image : *images) paths[image.index] = image.path;
 
-  const std::vector<ViewPlan> plans = PlanViews(*model, context.options.dense_max_image_side);
+  const std::vector<ViewPlan> plans = PlanViews(model, context.options.dense_max_image_side);
   nlohmann::json views = nlohmann::json::array();
   std::size_t matchable = 0;
   for (const ViewPlan& plan : plans) {
@@ -358,7 +369,7 @@ StageResult DenseStage::Run(StageContext& context) const {
 
   fs::create_directories(context.stage_dir / "maps");
   context.progress.Restart(matchable + 1, "depth maps");
-  ViewCache cache(*model, std::move(paths), context.options);
+  ViewCache cache(model, std::move(paths), context.options);
   const Timer maps_timer;
   nlohmann::json maps = ComputeMaps(plans, &cache, context);
   const double maps_seconds = maps_timer.ElapsedSeconds();
@@ -385,7 +396,7 @@ StageResult DenseStage::Run(StageContext& context) const {
       // their neighbours' where they overlap (FusionResult).
       {"neighbor_agreement_median",
        agreements.empty() ? nlohmann::json() : nlohmann::json(Median(agreements))},
-      {"sparse_to_dense", SparseToDense(*model, fused.cloud)}};
+      {"sparse_to_dense", SparseToDense(model, fused.cloud)}};
   if (fused.cloud.size() == 0) {
     return StageResult::Skipped("dense",
                                 "no surface was confirmed by " +

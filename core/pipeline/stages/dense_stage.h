@@ -42,7 +42,7 @@ class DenseStage : public Stage {
   double Weight() const override { return 5.0; }
   bool KeepsFinishedParts() const override { return true; }
   std::vector<std::string> OptionsUsed() const override {
-    return {"dense_matching", "dense_max_image_side", "dense_min_views"};
+    return {"dense_matching", "dense_max_image_side", "dense_min_views", "held_out_photos"};
   }
   StageResult Run(StageContext& context) const override;
 };
@@ -55,7 +55,8 @@ std::vector<std::string> PerPhotoFileNames(const std::vector<std::string>& names
                                            const std::vector<int>& indices);
 
 // The same names for a model's photos, by image id: those ExportDenseResults gives the files
-// of the sparse stage's model (its depth maps are the model's photos, in image id order).
+// of the model the dense stage matched (the sparse model without the held-out photos; its
+// depth maps are that model's photos, in image id order).
 std::map<int, std::string> PerPhotoFileNames(const Reconstruction& model);
 
 // The dense stage's deliverables from work/dense/ into `out` (the export stage's table):

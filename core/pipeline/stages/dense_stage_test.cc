@@ -7,6 +7,7 @@
 #include "core/mvs/depth_map_io.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/mesh_stage.h"
+#include "core/pipeline/stages/texture_stage.h"
 #include "core/scene/render.h"
 #include "core/scene/textured_scene.h"
 
@@ -311,6 +312,65 @@ TEST_F(DenseStageTest, MeshStageMeshesTheFloor) {
   options_.mesh = false;
   mesh = RunMeshStage(workspace_, options_);
   EXPECT_THAT(mesh.summary.value("skipped_reason", ""), ::testing::HasSubstr("turned off"));
+}
+
+StageResult RunTextureStage(const Workspace& workspace, const PipelineOptions& options) {
+  fs::remove_all(workspace.StageDir("texture"));
+  fs::create_directories(workspace.StageDir("texture"));
+  Progress progress;
+  CancelToken cancel;
+  std::vector<StageRecord> previous;
+  StageContext context{workspace, options,  progress,
+                       cancel,    previous, workspace.StageDir("texture")};
+  return TextureStage().Run(context);
+}
+
+// A held-out photo (option held_out_photos) gets no depth map, gives no point and no texel,
+// and the texture stage renders the model through its camera beside the others.
+TEST_F(DenseStageTest, HeldOutPhotoIsLeftOutOfDenseAndTextureAndRendered) {
+  options_.held_out_photos = {"floor_2.png"};
+  const StageResult dense = RunDense();
+  ASSERT_EQ(dense.status, StageStatus::kSuccess) << dense.message;
+  ASSERT_EQ(dense.summary["maps"].size(), 4u);
+  for (const nlohmann::json& map : dense.summary["maps"]) EXPECT_NE(map["image_id"], 2);
+  auto views = ReadFile(workspace_.StageDir("dense") / "views.json");
+  ASSERT_TRUE(views.ok());
+  for (const nlohmann::json& view : nlohmann::json::parse(*views)) {
+    EXPECT_NE(view["name"], "floor_2.png");
+    for (const nlohmann::json& neighbor : view["neighbors"]) EXPECT_NE(neighbor["image_id"], 2);
+  }
+  auto cloud = ReadDenseCloudPly(workspace_.StageDir("dense") / "dense.ply");
+  ASSERT_TRUE(cloud.ok());
+  EXPECT_GT(cloud->size(), 10000u);
+  auto files = ExportDenseResults(workspace_, workspace_.output_dir);
+  ASSERT_TRUE(files.ok()) << files.status().message();
+  EXPECT_FALSE(fs::exists(workspace_.output_dir / "depth" / "floor_2.png"));
+  EXPECT_TRUE(fs::exists(workspace_.output_dir / "depth" / "floor_1.png"));
+
+  options_.mesh_max_faces = 20000;
+  ASSERT_EQ(RunMeshStage(workspace_, options_).status, StageStatus::kSuccess);
+  const StageResult texture = RunTextureStage(workspace_, options_);
+  ASSERT_EQ(texture.status, StageStatus::kSuccess) << texture.message;
+  ASSERT_EQ(texture.summary["renders"].size(), 5u) << texture.summary.dump();
+  for (const nlohmann::json& render : texture.summary["renders"]) {
+    EXPECT_EQ(render["held_out"], render["name"] == "floor_2.png") << render.dump();
+  }
+  const nlohmann::json& held_out = texture.summary["held_out"];
+  const nlohmann::json& in_sample = texture.summary["in_sample"];
+  std::printf("held out: %s; in sample: %s\n", held_out.dump().c_str(), in_sample.dump().c_str());
+  ASSERT_EQ(held_out["photos"], 1);
+  ASSERT_EQ(in_sample["photos"], 4);
+  // The middle camera sees the floor its neighbours textured: as much of it covered, and colours
+  // as close as an in-sample photo's (the photos are noise-free renders; what separates them is
+  // resampling, the same for both) within a factor of two.
+  EXPECT_GT(held_out["covered"].get<double>(), 0.8);
+  EXPECT_LT(held_out["mean_abs_diff"].get<double>(),
+            2.0 * in_sample["mean_abs_diff"].get<double>() + 1.0);
+
+  options_.held_out_photos = {"floor_9.png"};
+  const StageResult unknown = RunDense();
+  EXPECT_EQ(unknown.status, StageStatus::kFailed);
+  EXPECT_THAT(unknown.message, ::testing::HasSubstr("'floor_9.png', not among the photos"));
 }
 
 }  // namespace

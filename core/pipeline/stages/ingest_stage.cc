@@ -2,6 +2,7 @@
 
 #include "core/image/ingest.h"
 #include "core/io/file_util.h"
+#include "core/pipeline/held_out.h"
 #include "core/util/logging.h"
 
 namespace reconduit {
@@ -42,6 +43,12 @@ IngestedImage IngestedImage::FromJson(const nlohmann::json& json) {
 
 StageResult IngestStage::Run(StageContext& context) const {
   const Workspace& workspace = context.workspace;
+  // Checked here, before hours of work, and again by the stages that use the option (a resumed
+  // job may change it).
+  std::vector<std::string> names;
+  for (const InputImage& input : workspace.images) names.push_back(input.name);
+  if (Status s = CheckHeldOutPhotos(context.options.held_out_photos, names); !s.ok())
+    return StageResult::Failed(s.message());
   IngestOptions options;
   options.reader.min_side = context.options.min_image_side;
   options.reader.max_pixels = context.options.max_image_pixels;

@@ -3,6 +3,7 @@
 #include "core/io/file_util.h"
 #include "core/io/reconstruction_json.h"
 #include "core/io/result_archive.h"
+#include "core/pipeline/held_out.h"
 #include "core/pipeline/report_html.h"
 #include "core/pipeline/stages/dense_stage.h"
 #include "core/pipeline/stages/export_stage.h"
@@ -45,7 +46,8 @@ nlohmann::json ReportJson(const StageContext& context) {
 
 // Every photo with what report.html shows of it. Without ingest records (a pipeline without
 // the ingest stage, in tests) the photos are listed by name only.
-std::vector<ReportPhoto> ReportPhotos(const Workspace& workspace) {
+std::vector<ReportPhoto> ReportPhotos(const Workspace& workspace,
+                                      const std::vector<std::string>& held_out) {
   std::vector<ReportPhoto> photos;
   auto images = ReadIngestedImages(workspace);
   if (!images.ok()) {
@@ -54,10 +56,13 @@ std::vector<ReportPhoto> ReportPhotos(const Workspace& workspace) {
     return photos;
   }
   const std::map<int, std::string> thumbnails = ThumbnailPaths(*images);
-  std::map<int, std::string> stems;  // Of the delivered model's photos, as the dense stage's.
+  std::set<int> registered;
+  std::map<int, std::string> stems;  // The dense stage's names for the photos it matched.
   if (auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
-      model.ok())
-    stems = PerPhotoFileNames(*model);
+      model.ok()) {
+    for (const auto& [id, image] : model->images) registered.insert(id);
+    stems = PerPhotoFileNames(WithoutHeldOutPhotos(*model, held_out));
+  }
   for (const IngestedImage& image : *images) {
     ReportPhoto photo{.index = image.index,
                       .name = image.name,
@@ -65,8 +70,8 @@ std::vector<ReportPhoto> ReportPhotos(const Workspace& workspace) {
                       .refusal = image.photo.reason};
     if (const auto it = thumbnails.find(image.index); it != thumbnails.end())
       photo.thumbnail = it->second;
+    photo.registered = registered.count(image.index) > 0;
     if (const auto it = stems.find(image.index); it != stems.end()) {
-      photo.registered = true;
       photo.depth_preview = "report/dense/" + it->second + "_depth.jpg";
       photo.quality_preview = "report/dense/" + it->second + "_quality.png";
       photo.depth_map = "depth/" + it->second + ".png";
@@ -80,12 +85,13 @@ std::vector<ReportPhoto> ReportPhotos(const Workspace& workspace) {
 // Writes output/report.html for an archive that will hold `files` (plus the page and the
 // manifest when there is an archive); `excluded` is what the options leave out of it.
 Status WriteReportHtml(const Workspace& workspace,
+                       const PipelineOptions& options,
                        const nlohmann::json& report,
                        const std::vector<std::string>& files,
                        const ArchiveExclusions& excluded) {
   ReportHtmlInput input;
   input.report = report;
-  input.photos = ReportPhotos(workspace);
+  input.photos = ReportPhotos(workspace, options.held_out_photos);
   input.files = std::set<std::string>(files.begin(), files.end());
   input.files.insert("report.html");
   if (!workspace.archive_path.empty()) input.files.insert("manifest.json");
@@ -119,7 +125,7 @@ StageResult PackageStage::Run(StageContext& context) const {
   context.progress.SetMessage("writing report.html");
   auto files = ListResultFiles(workspace.output_dir, excluded);
   if (!files.ok()) return StageResult::Failed(files.status().message());
-  if (Status s = WriteReportHtml(workspace, report, *files, excluded); !s.ok())
+  if (Status s = WriteReportHtml(workspace, context.options, report, *files, excluded); !s.ok())
     return StageResult::Failed(s.message());
   context.progress.Advance();
 

@@ -4,6 +4,7 @@
 #include "core/io/gltf.h"
 #include "core/io/mesh_ply.h"
 #include "core/io/reconstruction_json.h"
+#include "core/pipeline/held_out.h"
 #include "core/pipeline/stages/dense_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/texture/render_textured_mesh.h"
@@ -131,13 +132,16 @@ Status WriteReportPictures(const cv::Mat& render,
 // difference of the covered pixels (grey levels 0-255, mean over the three channels). Both are
 // per photo in report.json; the same figures for photos held out of texturing will tell how
 // well the model predicts a view it was not made from. `ids` are the views' image ids; a few
-// renders are kept as pictures in `picture_dir` (WriteReportPictures).
+// renders are kept as pictures in `picture_dir` (WriteReportPictures): the spread ones and the
+// first kReportPictures held-out photos.
 Result<nlohmann::json> CompareWithPhotos(const TriangleMesh& mesh,
                                          const std::vector<TextureView>& views,
+                                         const std::vector<std::string>& held_out,
                                          const std::vector<int>& ids,
                                          const std::map<int, std::string>& stems,
                                          const fs::path& picture_dir,
                                          const CancelToken& cancel) {
+  std::size_t held_out_pictures = 0;
   nlohmann::json renders = nlohmann::json::array();
   for (std::size_t k = 0; k < views.size(); ++k) {
     const TextureView& view = views[k];
@@ -153,11 +157,15 @@ Result<nlohmann::json> CompareWithPhotos(const TriangleMesh& mesh,
     const int covered = cv::countNonZero(render.coverage);
     const cv::Scalar sum = cv::sum(difference.setTo(cv::Scalar::all(0), render.coverage == 0));
     const double mad = covered > 0 ? (sum[0] + sum[1] + sum[2]) / (3.0 * covered) : NAN;
+    const bool is_held_out = IsHeldOut(held_out, view.name);
     nlohmann::json entry = {{"name", view.name},
                             {"image_id", ids[k]},
+                            {"held_out", is_held_out},
                             {"covered", static_cast<double>(covered) / render.coverage.total()},
                             {"mean_abs_diff", std::isfinite(mad) ? nlohmann::json(mad) : nullptr}};
-    if (ShowsInReport(k, views.size())) {
+    const bool held_out_picture = is_held_out && held_out_pictures < kReportPictures;
+    if (ShowsInReport(k, views.size()) || held_out_picture) {
+      held_out_pictures += held_out_picture;
       const Status s =
           WriteReportPictures(render.image, photo, picture_dir, stems.at(ids[k]), &entry);
       if (!s.ok()) return s;
@@ -165,6 +173,27 @@ Result<nlohmann::json> CompareWithPhotos(const TriangleMesh& mesh,
     renders.push_back(std::move(entry));
   }
   return renders;
+}
+
+// Mean covered share and mean absolute difference of the renders of the photos that were
+// (held_out true) or were not left out of texturing; null when there are none.
+nlohmann::json MeanRender(const nlohmann::json& renders, bool held_out) {
+  double covered = 0.0, difference = 0.0;
+  int count = 0, with_difference = 0;
+  for (const nlohmann::json& render : renders) {
+    if (render["held_out"].get<bool>() != held_out) continue;
+    ++count;
+    covered += render["covered"].get<double>();
+    if (render["mean_abs_diff"].is_number()) {
+      difference += render["mean_abs_diff"].get<double>();
+      ++with_difference;
+    }
+  }
+  if (count == 0) return nullptr;
+  return {{"photos", count},
+          {"covered", covered / count},
+          {"mean_abs_diff",
+           with_difference > 0 ? nlohmann::json(difference / with_difference) : nullptr}};
 }
 
 }  // namespace
@@ -182,10 +211,16 @@ StageResult TextureStage::Run(StageContext& context) const {
   auto views = TextureViews(context.workspace, *model, context.options);
   if (!views.ok()) return StageResult::Failed(views.status().message());
 
+  const std::vector<std::string>& held_out = context.options.held_out_photos;
+  std::vector<TextureView> sources;
+  for (const TextureView& view : *views) {
+    if (!IsHeldOut(held_out, view.name)) sources.push_back(view);
+  }
+
   TextureOptions options;
   options.page_size = context.options.texture_page_size;
   options.num_threads = context.options.num_threads;
-  TextureResult textured = TextureMesh(*mesh, *views, options, &context.progress, context.cancel);
+  TextureResult textured = TextureMesh(*mesh, sources, options, &context.progress, context.cancel);
   context.progress.SetMessage("writing model.glb");
   GltfSummary gltf;
   const Status written = WriteModelGlb(context.stage_dir / "model.glb", textured.mesh,
@@ -194,16 +229,20 @@ StageResult TextureStage::Run(StageContext& context) const {
   context.progress.SetMessage("comparing the model with the photos");
   std::vector<int> ids;
   for (const auto& [id, image] : model->images) ids.push_back(id);  // The views' order.
-  const auto renders = CompareWithPhotos(textured.mesh, *views, ids, PerPhotoFileNames(*model),
-                                         context.stage_dir / "report", context.cancel);
-  if (!renders.ok()) return StageResult::Failed(renders.status().message());
+  const auto found =
+      CompareWithPhotos(textured.mesh, *views, held_out, ids, PerPhotoFileNames(*model),
+                        context.stage_dir / "report", context.cancel);
+  if (!found.ok()) return StageResult::Failed(found.status().message());
+  const nlohmann::json& renders = *found;
   LOG_INFO << "texture: " << textured.summary.num_charts << " charts on "
            << textured.summary.num_pages << " pages, " << textured.summary.num_unseen_faces
            << " of " << textured.summary.num_faces << " faces unseen; model.glb " << gltf.file_bytes
            << " bytes";
   return StageResult::Success({{"texture", TextureJson(textured.summary)},
                                {"model", GltfJson(gltf)},
-                               {"renders", *renders}});
+                               {"renders", renders},
+                               {"in_sample", MeanRender(renders, false)},
+                               {"held_out", MeanRender(renders, true)}});
 }
 
 Result<std::vector<std::string>> ExportTexturedModel(const Workspace& workspace,
