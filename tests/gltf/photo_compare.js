@@ -161,21 +161,23 @@ export function photoInGltfFrame(photo, cam, W, H, yfov, aspect, undistort = tru
 // The render (glTF frame, RGBA with alpha 255 where a face is drawn) warped to the photo frame
 // of `cam` (W x cam.height), as core/texture/render_textured_mesh.cc warps its pinhole render:
 // colour bilinear (background black), coverage nearest; pixels whose ray folds back or falls
-// outside the render are uncovered.
+// outside the render are uncovered, and counted in `outside`: the part of the photo the glTF
+// camera does not see (glTF's camera has no off-centre principal point and no distortion).
 export function renderInPhotoFrame(render, W, H, yfov, aspect, cam) {
   const data = new Uint8ClampedArray(cam.width * cam.height * 4);
   const covered = new Uint8Array(cam.width * cam.height);
   const rLimit = monotoneRadius(cam.k1, cam.k2), rgb = [0, 0, 0];
+  let outside = 0;
   for (let b = 0; b < cam.height; ++b) {
     for (let a = 0; a < cam.width; ++a) {
       const xd = (a - cam.cx) / cam.focal, yd = (b - cam.cy) / cam.focal;
       const rd = Math.hypot(xd, yd);
       const r = undistortRadius(rd, cam.k1, cam.k2, rLimit);
-      if (r === null) continue;
+      if (r === null) { ++outside; continue; }
       const s = rd > 0 ? r / rd : 1;
       const [u, v] = gltfPixel(xd * s, yd * s, W, H, yfov, aspect);
       const un = Math.round(u), vn = Math.round(v);
-      if (un < 0 || vn < 0 || un >= W || vn >= H) continue;
+      if (un < 0 || vn < 0 || un >= W || vn >= H) { ++outside; continue; }
       const o = b * cam.width + a;
       covered[o] = render[4 * (vn * W + un) + 3] === 255 ? 1 : 0;
       if (!covered[o]) continue;
@@ -193,7 +195,7 @@ export function renderInPhotoFrame(render, W, H, yfov, aspect, cam) {
       data[4 * o] = rgb[0]; data[4 * o + 1] = rgb[1]; data[4 * o + 2] = rgb[2]; data[4 * o + 3] = 255;
     }
   }
-  return {data, covered};
+  return {data, covered, outside: outside / (cam.width * cam.height)};
 }
 
 // Covered share over the pixels where `valid` (all when null) and the mean absolute

@@ -117,6 +117,7 @@ test('a distorted photo, undistorted to the glTF camera, matches the render and 
   const warped = pc.renderInPhotoFrame(render, W, H, yfov, aspect, cam);
   const back = pc.coverageAndDifference(warped.data, photo.data, warped.covered, null, W * H);
   assert.ok(back.covered > 0.9 && back.covered < 0.99 && back.mean_abs_diff < 3, JSON.stringify(back));
+  assert.ok(Math.abs(warped.outside - (1 - back.covered)) < 1e-12);  // The render covers its frame.
   for (const [a, b] of [[0, 0], [W - 1, 0], [0, H - 1], [W - 1, H - 1]]) assert.equal(warped.covered[b * W + a], 0);
   assert.equal(warped.covered[(H >> 1) * W + (W >> 1)], 1);
 

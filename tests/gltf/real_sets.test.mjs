@@ -56,17 +56,22 @@ const selected = (process.env.RECONDUIT_GLTF_REAL_SETS || SETS.map((s) => s.name
     .split(',').filter(Boolean);
 
 // Agreement with the C++ renderer (report.json) in the photo's frame. Both render the same
-// mesh through the same camera at pixel centres, so the covered share differs only where the
-// two rasterisers disagree along silhouettes and the warp's nearest-pixel lookups round
-// differently: about one pixel along each silhouette, well under a percentage point of the
-// frame for these models; 1.5 points allows for it. The colours differ by more: three.js
-// samples the JPEG (quality 90) atlas pages with mipmaps (trilinear), the C++ renderer the
-// pages before encoding, bilinearly, without mipmaps; chromium's and OpenCV's JPEG decoders
-// differ by a grey level here and there; and the C++ side resizes an upsampled photo
-// (temple, kermit: 640 -> 1024) with INTER_AREA, which is close to, not equal to, the page's
-// bilinear. 2 grey levels (of differences of 5-15) covers these; a render through a wrong or
-// shifted camera differs by far more (see the uncorrected figures, printed beside).
-const COVERED_TOLERANCE = 0.015;
+// mesh through the same camera at pixel centres, and warp it through k1/k2 the same way, so
+// the covered share differs where the two rasterisers disagree along silhouettes (about a
+// pixel along each: a few thousand of the frame's 700-790 thousand pixels for these models,
+// under half a percentage point; 1 point allows for it), and by the part of the photo the
+// glTF camera cannot see: glTF has no off-centre principal point, so the centred pinhole
+// misses a strip of the photo on the side the principal point is off to (fountain-P11's is
+// 16 and 16 px off at full size: about 1.3 % of the frame), and barrel corners. That part the
+// C++ renderer may cover and the page cannot: it widens the bound on one side only. The
+// colours differ by more: three.js samples the JPEG (quality 90) atlas pages with mipmaps
+// (trilinear), the C++ renderer the pages before encoding, bilinearly, without mipmaps;
+// chromium's and OpenCV's JPEG decoders differ by a grey level here and there; and the C++
+// side resizes an upsampled photo (temple, kermit: 640 -> 1024) with INTER_AREA, close to,
+// not equal to, the page's bilinear. 2 grey levels (of differences of 9-14) covers these; a
+// photo compared without its distortion differs by 4.7 on kermit (printed beside), and a
+// camera a pixel off is caught by the line-up below.
+const COVERED_TOLERANCE = 0.01;
 const DIFF_TOLERANCE = 2.0;
 // Line-up: each tile's best edge shift within 2 px (at 1024 px wide) and their median within
 // 1 px; the sparse model's reprojection error is under a pixel of the original photos, and
@@ -178,6 +183,7 @@ window.compareWithPhoto = async ({model, photo, camera, width}) => {
   // The photo's frame, as the C++ renderer measures.
   const warped = pc.renderInPhotoFrame(render, W, H, yfov, aspect, photoCam);
   const cppFrame = pc.coverageAndDifference(warped.data, photoFrame, warped.covered, null, n);
+  cppFrame.outside = warped.outside;
   lap('compare');
 
   const renderMask = new Uint8Array(n);
@@ -363,7 +369,8 @@ for (const set of SETS) {
                 `k1 ${fix(r.extras.k1, 4)} k2 ${fix(r.extras.k2, 4)} (up to ${fix(r.max_distortion_shift_px, 1)} px)`);
     console.log(`  undistorted to the glTF camera: ${pct(g.covered)} covered, mean abs diff ${fix(g.mean_abs_diff)} ` +
                 `(bounds >= ${pct(set.minCovered)}, <= ${set.maxDiff}); merely resized: ${pct(u.covered)}, ${fix(u.mean_abs_diff)}`);
-    console.log(`  photo frame (render warped through k1/k2): ${pct(p.covered)} at ${fix(p.mean_abs_diff)}; ` +
+    console.log(`  photo frame (render warped through k1/k2): ${pct(p.covered)} at ${fix(p.mean_abs_diff)} ` +
+                `(${pct(p.outside)} of the photo outside the glTF view); ` +
                 `report.json: ${pct(cppRender.covered)} at ${fix(cppRender.mean_abs_diff)}`);
     console.log(`  edge line-up, ${r.tiles.length} of 12 tiles: shifts median ${fix(median(shifts))} px, max ` +
                 `${fix(Math.max(...shifts))} px [${r.tiles.map((k) => `${fix(k.dx, 1)},${fix(k.dy, 1)}`).join(' ')}]; ` +
@@ -381,8 +388,10 @@ for (const set of SETS) {
     assert.ok(g.covered >= set.minCovered, `covered ${pct(g.covered)} < ${pct(set.minCovered)}`);
     assert.ok(g.mean_abs_diff <= set.maxDiff, `mean abs diff ${fix(g.mean_abs_diff)} > ${set.maxDiff}`);
     // The same as the C++ renderer, in the photo's frame.
-    assert.ok(Math.abs(p.covered - cppRender.covered) <= COVERED_TOLERANCE,
-              `covered ${pct(p.covered)} vs report.json ${pct(cppRender.covered)}`);
+    assert.ok(p.covered - cppRender.covered <= COVERED_TOLERANCE &&
+              cppRender.covered - p.covered <= COVERED_TOLERANCE + p.outside,
+              `covered ${pct(p.covered)} vs report.json ${pct(cppRender.covered)} ` +
+              `(${pct(p.outside)} of the photo outside the glTF camera's view)`);
     assert.ok(Math.abs(p.mean_abs_diff - cppRender.mean_abs_diff) <= DIFF_TOLERANCE,
               `mean abs diff ${fix(p.mean_abs_diff)} vs report.json ${fix(cppRender.mean_abs_diff)}`);
     // Lined up: edges agree without colour.
