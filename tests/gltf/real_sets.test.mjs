@@ -54,6 +54,10 @@ const SETS = [
 ];
 const selected = (process.env.RECONDUIT_GLTF_REAL_SETS || SETS.map((s) => s.name).join(','))
     .split(',').filter(Boolean);
+for (const name of selected) {
+  if (!SETS.some((s) => s.name === name))
+    throw new Error(`RECONDUIT_GLTF_REAL_SETS: unknown set ${name} (${SETS.map((s) => s.name).join(', ')})`);
+}
 
 // Agreement with the C++ renderer (report.json) in the photo's frame. Both render the same
 // mesh through the same camera at pixel centres, and warp it through k1/k2 the same way, so
