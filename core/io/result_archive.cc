@@ -19,35 +19,50 @@ bool IsCompressed(const std::filesystem::path& path) {
 
 std::string ZipError(zip_t* archive) { return zip_strerror(archive); }
 
+bool IsExcluded(const std::string& name, const ArchiveExclusions& excluded) {
+  return std::any_of(excluded.begin(), excluded.end(), [&](const std::string& entry) {
+    return entry.ends_with('/') ? name.starts_with(entry) : name == entry;
+  });
+}
+
 }  // namespace
 
-Result<ResultArchiveSummary> WriteResultArchive(const std::filesystem::path& folder,
-                                                const std::filesystem::path& zip_path,
-                                                const CancelToken& cancel) {
+Result<std::vector<std::string>> ListResultFiles(const std::filesystem::path& folder,
+                                                 const ArchiveExclusions& excluded) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (!fs::is_directory(folder, ec)) {
     return Status::NotFound("result folder '" + folder.string() + "' does not exist");
   }
-
-  ResultArchiveSummary summary;
-  std::vector<fs::path> paths;
+  std::vector<std::string> names;
   for (const auto& entry : fs::recursive_directory_iterator(folder)) {
     // Symlinks (even to regular files) and special files are never packed.
     if (entry.is_symlink() || !entry.is_regular_file()) continue;
-    const fs::path relative = fs::relative(entry.path(), folder);
-    if (relative == "manifest.json") continue;
-    paths.push_back(relative);
+    const std::string name = fs::relative(entry.path(), folder).generic_string();
+    if (name == "manifest.json" || IsExcluded(name, excluded)) continue;
+    names.push_back(name);
   }
-  std::sort(paths.begin(), paths.end());
+  std::sort(names.begin(), names.end());
+  return names;
+}
 
+Result<ResultArchiveSummary> WriteResultArchive(const std::filesystem::path& folder,
+                                                const std::filesystem::path& zip_path,
+                                                const CancelToken& cancel,
+                                                const ArchiveExclusions& excluded) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  auto names = ListResultFiles(folder, excluded);
+  if (!names.ok()) return names.status();
+
+  ResultArchiveSummary summary;
   nlohmann::json manifest = {{"files", nlohmann::json::array()}};
-  for (const fs::path& relative : paths) {
+  for (const std::string& name : *names) {
     cancel.ThrowIfCanceled();
     ManifestEntry file;
-    file.name = relative.generic_string();
-    file.bytes = static_cast<std::int64_t>(fs::file_size(folder / relative));
-    auto sha = Sha256OfFile(folder / relative);
+    file.name = name;
+    file.bytes = static_cast<std::int64_t>(fs::file_size(folder / name));
+    auto sha = Sha256OfFile(folder / name);
     if (!sha.ok()) return sha.status();
     file.sha256 = *sha;
     manifest["files"].push_back(

@@ -6,8 +6,11 @@
 #include <nlohmann/json.hpp>
 #include <zip.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
+#include <string>
+#include <vector>
 
 namespace reconduit {
 namespace {
@@ -76,6 +79,39 @@ TEST_F(ResultArchiveTest, RewritingReplacesTheArchive) {
   ASSERT_TRUE(WriteFileAtomically(root_ / "out" / "extra.txt", "more").ok());
   ASSERT_TRUE(WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken()).ok());
   EXPECT_EQ(ReadZip(root_ / "result.zip").count("extra.txt"), 1u);
+}
+
+// The lean archive: a folder entry leaves out everything under it, a file entry that file
+// only (not a file whose name merely starts with it); the manifest lists exactly the zip.
+TEST_F(ResultArchiveTest, LeavesOutExcludedFilesAndFoldersFromZipAndManifest) {
+  fs::create_directories(root_ / "out" / "depth");
+  fs::create_directories(root_ / "out" / "report" / "dense");
+  for (const char* name :
+       {"depth/a.png", "depth/a.json", "dense.ply", "dense.ply.txt", "report/dense/a_depth.jpg"})
+    ASSERT_TRUE(WriteFileAtomically(root_ / "out" / name, name).ok());
+  const ArchiveExclusions excluded = {"depth/", "dense.ply", "quality/"};
+  auto listed = ListResultFiles(root_ / "out", excluded);
+  ASSERT_TRUE(listed.ok()) << listed.status();
+  const std::vector<std::string> expected = {"dense.ply.txt", "report.json",
+                                             "report/dense/a_depth.jpg", "sparse/cameras.txt"};
+  EXPECT_EQ(*listed, expected);
+
+  auto summary = WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken(), excluded);
+  ASSERT_TRUE(summary.ok()) << summary.status();
+  const auto entries = ReadZip(root_ / "result.zip");
+  std::vector<std::string> zipped;
+  for (const auto& [name, data] : entries) zipped.push_back(name);
+  std::vector<std::string> with_manifest = expected;
+  with_manifest.push_back("manifest.json");
+  std::sort(with_manifest.begin(), with_manifest.end());
+  EXPECT_EQ(zipped, with_manifest);
+  std::vector<std::string> manifested;
+  const nlohmann::json manifest = nlohmann::json::parse(entries.at("manifest.json"));
+  for (const auto& file : manifest["files"]) manifested.push_back(file["name"]);
+  EXPECT_EQ(manifested, expected) << "the manifest lists what the zip holds, itself aside";
+  // Left out of the zip, not deleted: the service still serves them one by one.
+  EXPECT_TRUE(fs::exists(root_ / "out" / "depth" / "a.png"));
+  EXPECT_TRUE(fs::exists(root_ / "out" / "dense.ply"));
 }
 
 TEST_F(ResultArchiveTest, MissingFolderIsNotFound) {

@@ -170,6 +170,11 @@ std::vector<OptionSpec> MakeSpecs() {
       "Keep the intermediate files (features, matches, depth maps) after the job succeeds, "
       "e.g. to rerun later stages with other options without starting over. By default they "
       "are removed once result.zip is written."));
+  specs.push_back(BooleanOption(
+      "package_dense_files", &PipelineOptions::package_dense_files,
+      "Put dense.ply and the full-size depth and quality maps (depth/, quality/) in result.zip. "
+      "Off, result.zip is much smaller: the model, the cameras and the report with its "
+      "previews; the left-out files can still be downloaded one by one from the job's files."));
   specs.push_back(IntegerOption(
       "num_threads", &PipelineOptions::num_threads, 0, 256,
       "Threads for parallel stages; 0 uses every core. A worker grants at most its --threads."));
@@ -245,7 +250,7 @@ Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text) {
 }
 
 bool OptionAffectsResults(const std::string& name) {
-  return name != "num_threads" && name != "keep_work_files";
+  return name != "num_threads" && name != "keep_work_files" && name != "package_dense_files";
 }
 
 nlohmann::json PipelineOptionsToJson(const PipelineOptions& options) {

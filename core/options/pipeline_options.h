@@ -68,6 +68,10 @@ struct PipelineOptions {
   // Keep the intermediate work files (features, matches, depth maps, ...) after a job succeeds;
   // by default they are removed then (a failed or canceled job keeps them, to resume). [bool]
   bool keep_work_files = false;
+  // Put the heavy dense files in result.zip: dense.ply and the full-size depth/ and quality/
+  // maps. Off, result.zip keeps the model, the cameras and the report (with the small depth
+  // and quality previews); the service still serves the left-out files one by one. [bool]
+  bool package_dense_files = true;
   // Worker threads for parallel stages; 0 = all cores. [0, 256]
   int num_threads = 0;
 
@@ -91,8 +95,9 @@ struct OptionSpec {
 
 const std::vector<OptionSpec>& PipelineOptionSpecs();
 
-// False only for options that change how fast, not what, the pipeline computes (num_threads),
-// or what is kept afterwards (keep_work_files): changing them does not invalidate finished
+// False for options that change how fast, not what, the pipeline computes (num_threads),
+// what is kept afterwards (keep_work_files), or only what the packaging stage packs
+// (package_dense_files; it runs every time): changing them does not invalidate finished
 // stages.
 bool OptionAffectsResults(const std::string& name);
 

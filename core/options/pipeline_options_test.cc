@@ -142,5 +142,18 @@ TEST(ParsePipelineOptions, HeldOutPhotosAreAListOfNames) {
   }
 }
 
+// Options that only change speed or what the packaging stage packs leave finished stages
+// valid: the lean zip can be asked for on a restart without recomputing the model.
+TEST(OptionAffectsResults, FalseOnlyForSpeedAndPackaging) {
+  EXPECT_FALSE(OptionAffectsResults("num_threads"));
+  EXPECT_FALSE(OptionAffectsResults("package_dense_files"));
+  EXPECT_TRUE(OptionAffectsResults("texture"));
+  EXPECT_TRUE(OptionAffectsResults("dense_max_image_side"));
+  auto lean = ParsePipelineOptions({{"package_dense_files", false}});
+  ASSERT_TRUE(lean.ok()) << lean.status();
+  EXPECT_FALSE(lean->package_dense_files);
+  EXPECT_TRUE(PipelineOptions().package_dense_files);
+}
+
 }  // namespace
 }  // namespace reconduit

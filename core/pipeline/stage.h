@@ -35,7 +35,8 @@ struct Workspace {
   std::vector<InputImage> images;
   // Per-stage folders work_dir/<stage>/ with the stage's outputs and its stage.json marker.
   std::filesystem::path work_dir;
-  // Deliverables, laid out exactly as inside result.zip.
+  // Deliverables, laid out exactly as inside result.zip; the zip may leave some out
+  // (package_dense_files), its manifest.json lists what it holds.
   std::filesystem::path output_dir;
   // Where the packaging stage writes the zip; empty for no zip (the command line).
   std::filesystem::path archive_path;

@@ -29,6 +29,8 @@ import readline from 'node:readline';
 
 import {chromium} from 'playwright-core';
 
+import {checkExtractedReport} from './report.mjs';
+
 const env = (name) => {
   const value = process.env[name];
   if (!value) throw new Error(`${name} is not set (run this test through ctest)`);
@@ -134,9 +136,10 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   await recordModelStatus(page);
   await page.setInputFiles('#files', photos);
   assert.match(await page.textContent('#drop-text'), /^11 files/);
-  // Depth maps at 320 px keep the test short (11 maps of 640 x 480 photos take minutes).
+  // Depth maps at 320 px keep the test short (11 maps of 640 x 480 photos take minutes). The
+  // lean result.zip (no dense.ply, depth/, quality/) is checked below with its report.html.
   await page.click('#upload-form details summary');
-  await page.fill('#options', '{"dense_max_image_side": 320}');
+  await page.fill('#options', '{"dense_max_image_side": 320, "package_dense_files": false}');
   await page.click('#submit');
 
   // The new job opens by itself and runs to the end.
@@ -156,8 +159,10 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   assert.deepEqual(statuses, Array(10).fill('success'));
   // The focal length with its precision (one standard deviation).
   assert.match(await page.textContent('#cameras'), /\d+\.\d\d ± \d+\.\d\d/);
-  // The two matching pictures and a depth and a quality preview per photo (lazy: scrolled to).
-  await page.waitForFunction(() => document.querySelectorAll('#pictures img').length === 2 + 2 * 11);
+  // The two matching pictures, a depth and a quality preview per photo, and report.html's
+  // thumbnails (one per photo) and four renders beside their photos (lazy: scrolled to).
+  await page.waitForFunction(
+      () => document.querySelectorAll('#pictures img').length === 2 + 2 * 11 + 11 + 2 * 4);
   for (const name of ['report/similarity.png', 'report/dense/kermit010_depth.jpg',
                       'report/dense/kermit010_quality.png']) {
     const img = page.locator(`#pictures img[alt="${name}"]`);
@@ -176,6 +181,7 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   const zip = await fetch(baseUrl + download);
   assert.equal(zip.status, 200);
   assert.equal(zip.headers.get('content-type'), 'application/zip');
+  await checkReport(Buffer.from(await zip.arrayBuffer()));
   assert.match(await page.textContent('#log'), /queued with 11 photos/);
   await page.screenshot({path: path.join(outDir, 'reconduit-web-test.png'), fullPage: true});
 
@@ -190,6 +196,34 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
   assert.deepEqual(errors, []);
   await page.close();
 });
+
+// The kermit job's result.zip, extracted, its report.html opened from file:// (report.mjs).
+async function checkReport(zipBytes) {
+  const {text, files, images} =
+      await checkExtractedReport(browser, zipBytes, path.join(dataDir, 'extracted-result'));
+  // Lean: the heavy dense files stay on the server (the files list above has dense.ply).
+  for (const name of ['dense.ply', 'depth/kermit000.png', 'quality/kermit000.png'])
+    assert.ok(!files.includes(name), `${name} left out of result.zip`);
+  const manifest = JSON.parse(fs.readFileSync(
+      path.join(dataDir, 'extracted-result', 'extracted', 'manifest.json'), 'utf8'));
+  assert.deepEqual(manifest.files.map((f) => f.name).sort(),
+                   files.filter((f) => f !== 'manifest.json').sort(), 'the manifest is the zip');
+  // A thumbnail, a depth and a quality preview per photo, the two matching pictures, and
+  // renders of the model beside their photos.
+  const sources = images.map((img) => img.src);
+  for (let k = 0; k <= 10; ++k) {
+    const stem = `kermit${String(k).padStart(3, '0')}`;
+    for (const file of [`report/photos/${stem}.jpg`, `report/dense/${stem}_depth.jpg`,
+                        `report/dense/${stem}_quality.png`])
+      assert.ok(sources.includes(`./${file}`), file);
+  }
+  for (const file of ['report/similarity.png', 'report/match_graph.png',
+                      'report/texture/kermit000_render.jpg', 'report/texture/kermit000_photo.jpg'])
+    assert.ok(sources.includes(`./${file}`), file);
+  assert.match(text, /registered photos\s*11/);
+  assert.match(text, /kermit000\.jpg: covered \d+\.\d %, difference \d+\.\d/);
+  assert.match(text, /Left out of this archive \(option package_dense_files\): dense\.ply, depth\/, quality\//);
+}
 
 // ---------------------------------------------------------------------------------------------
 // The 3D view

@@ -433,6 +433,19 @@ std::vector<std::string> PerPhotoFileNames(const std::vector<std::string>& names
   return stems;
 }
 
+std::map<int, std::string> PerPhotoFileNames(const Reconstruction& model) {
+  std::vector<std::string> names;
+  std::vector<int> ids;
+  for (const auto& [id, image] : model.images) {
+    names.push_back(image.name);
+    ids.push_back(id);
+  }
+  const std::vector<std::string> stems = PerPhotoFileNames(names, ids);
+  std::map<int, std::string> by_id;
+  for (std::size_t k = 0; k < ids.size(); ++k) by_id[ids[k]] = stems[k];
+  return by_id;
+}
+
 namespace {
 
 Status WritePicture(const fs::path& path, const cv::Mat& image) {

@@ -27,7 +27,9 @@
 #define RECONDUIT_CORE_PIPELINE_STAGES_DENSE_STAGE_H_
 
 #include "core/pipeline/stage.h"
+#include "core/scene/reconstruction.h"
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -51,6 +53,11 @@ class DenseStage : public Stage {
 // letters, digits, '-', '_' and '.' become '_'.
 std::vector<std::string> PerPhotoFileNames(const std::vector<std::string>& names,
                                            const std::vector<int>& indices);
+
+// The same names for a model's photos, by image id: those ExportDenseResults gives the files
+// of the model the dense stage matched (the sparse model without the held-out photos; its
+// depth maps are that model's photos, in image id order).
+std::map<int, std::string> PerPhotoFileNames(const Reconstruction& model);
 
 // The dense stage's deliverables from work/dense/ into `out` (the export stage's table):
 // dense.ply, depth/<name>.png and .json, quality/<name>.png, and report/dense/<name>_depth.jpg

@@ -246,6 +246,17 @@ TEST(PerPhotoFileNamesTest, StemsAndACountForSharedStems) {
   EXPECT_EQ(PerPhotoFileNames({"folder/"}, {0}), (std::vector<std::string>{"photo"}));
 }
 
+// A model's photos get the names their depth maps get (report.html and the texture stage's
+// pictures find them with it); a photo outside the model does not change them.
+TEST(PerPhotoFileNamesTest, OfAModelByImageId) {
+  Reconstruction model;
+  model.images[0].name = "IMG_1.JPG";
+  model.images[4].name = "IMG_1.png";
+  model.images[5].name = "x.y.jpg";
+  const std::map<int, std::string> expected = {{0, "IMG_1_1"}, {4, "IMG_1_5"}, {5, "x.y"}};
+  EXPECT_EQ(PerPhotoFileNames(model), expected);
+}
+
 }  // namespace
 }  // namespace reconduit
 

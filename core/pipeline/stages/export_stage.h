@@ -13,9 +13,12 @@
 //   depth/<name>.png, .json every photo's depth map (16-bit) with its range, camera and pose
 //   quality/<name>.png      every photo's quality map (how many photos agree, 8-bit)
 //   report/dense/           previews of both
+// and from the ingest records:
+//   report/photos/<name>.jpg  every accepted photo, at most 256 px (ThumbnailPaths)
 // and from the mesh and texture stages (mesh_stage.h, texture_stage.h):
 //   model.glb               the textured mesh with the cameras (untextured, with the mesh's
 //                           vertex colours, when the texture stage did not run or skipped)
+//   report/texture/         a few renders of the model beside their photos
 // A stage that did not run (a run stopped early with --until) exports nothing. A later stage
 // (dense points, mesh, texture) adds its deliverables with one entry in the exporter table of
 // export_stage.cc.
@@ -31,8 +34,18 @@
 #define RECONDUIT_CORE_PIPELINE_STAGES_EXPORT_STAGE_H_
 
 #include "core/pipeline/stage.h"
+#include "core/pipeline/stages/ingest_stage.h"
+
+#include <map>
+#include <string>
+#include <vector>
 
 namespace reconduit {
+
+// Where the export puts each accepted photo's thumbnail, by ingest index: report/photos/
+// <name>.jpg, <name> by the rule of the dense stage's per-photo files (PerPhotoFileNames)
+// applied to every ingested photo. report.html finds the thumbnails with it.
+std::map<int, std::string> ThumbnailPaths(const std::vector<IngestedImage>& images);
 
 class ExportStage : public Stage {
  public:

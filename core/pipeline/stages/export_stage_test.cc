@@ -10,8 +10,10 @@
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
+#include <map>
 #include <string>
 #include <unistd.h>
 
@@ -69,11 +71,9 @@ class ExportStageTest : public ::testing::Test {
   void SetUp() override {
     root_ = fs::temp_directory_path() / ("reconduit_export_stage_test_" + std::to_string(getpid()));
     fs::remove_all(root_);
-    workspace_.images = {{"a.jpg", "a.jpg"},
-                         {"b.jpg", "b.jpg"},
-                         {"c.jpg", "c.jpg"},
-                         {"d.jpg", "d.jpg"},
-                         {"e.txt", "e.txt"}};
+    fs::create_directories(root_);
+    for (const char* name : {"a.jpg", "b.jpg", "c.jpg", "d.jpg", "e.txt"})
+      workspace_.images.push_back({root_ / name, name});
     workspace_.work_dir = root_ / "work";
     workspace_.output_dir = root_ / "output";
     fs::create_directories(workspace_.StageDir("ingest"));
@@ -90,6 +90,12 @@ class ExportStageTest : public ::testing::Test {
       image.photo.width = i == 3 ? 480 : 640;
       image.photo.height = i == 3 ? 640 : 480;
       images.push_back(image.ToJson());
+      // Real photos for the thumbnails: a gradient, d.jpg upright (portrait).
+      cv::Mat pixels(image.photo.height, image.photo.width, CV_8UC3);
+      for (int y = 0; y < pixels.rows; ++y) pixels.row(y).setTo(cv::Scalar(y % 256, 40 * i, 128));
+      if (image.photo.accepted) {
+        ASSERT_TRUE(cv::imwrite(image.path.string(), pixels));
+      }
     }
     ASSERT_TRUE(WriteFileAtomically(workspace_.StageDir("ingest") / "images.json",
                                     nlohmann::json{{"images", images}}.dump())
@@ -124,8 +130,8 @@ TEST_F(ExportStageTest, WritesTheSparseDeliverablesAsTheModelInMemoryWouldGive) 
   ASSERT_TRUE(WriteReconstructionJson(workspace_.StageDir("sparse") / "model_0.json", model).ok());
   const StageResult result = RunExport(SparseSucceeded());
   ASSERT_EQ(result.status, StageStatus::kSuccess) << result.message;
-  EXPECT_EQ(result.summary["exported"], "sparse");
-  EXPECT_EQ(result.summary["deliverables"], 7);
+  EXPECT_EQ(result.summary["exported"], "ingest, sparse");
+  EXPECT_EQ(result.summary["deliverables"], 7 + 4) << "and a thumbnail per accepted photo";
 
   // The same bytes as the writers give from the model in memory, the photo accepted but not
   // registered (c.jpg) listed as such.
@@ -138,7 +144,8 @@ TEST_F(ExportStageTest, WritesTheSparseDeliverablesAsTheModelInMemoryWouldGive) 
   ASSERT_TRUE(
       WritePointCloudPly(expected / "sparse.ply", PointCloudFromReconstruction(model)).ok());
   const auto want = FilesUnder(expected);
-  const auto got = FilesUnder(workspace_.output_dir);
+  auto got = FilesUnder(workspace_.output_dir);
+  std::erase_if(got, [](const auto& file) { return file.first.starts_with("report/photos/"); });
   ASSERT_EQ(want.size(), 7u);
   EXPECT_EQ(got, want);
   EXPECT_NE(got.at("cameras.json").find("c.jpg"), std::string::npos);
@@ -153,8 +160,8 @@ TEST_F(ExportStageTest, ExportsNothingForStagesThatDidNotRun) {
   ingest.status = StageStatus::kSuccess;
   const StageResult result = RunExport({ingest});
   ASSERT_EQ(result.status, StageStatus::kSuccess) << result.message;
-  EXPECT_EQ(result.summary["exported"], "");
-  EXPECT_EQ(result.summary["deliverables"], 0);
+  EXPECT_EQ(result.summary["exported"], "ingest");
+  EXPECT_EQ(result.summary["deliverables"], 4) << "the thumbnails only";
   EXPECT_FALSE(fs::exists(workspace_.output_dir / "cameras.json"));
   EXPECT_FALSE(fs::exists(workspace_.output_dir / "sparse.ply"));
 }
@@ -164,6 +171,30 @@ TEST_F(ExportStageTest, AMissingModelFailsTheStage) {
   EXPECT_EQ(result.status, StageStatus::kFailed);
   EXPECT_NE(result.message.find("sparse: "), std::string::npos) << result.message;
   EXPECT_NE(result.message.find("model_0.json"), std::string::npos) << result.message;
+}
+
+// report.html's thumbnails: every accepted photo at most 256 px, upright, named by the dense
+// stage's rule; a photo that cannot be read any more gets none and the export goes on.
+TEST_F(ExportStageTest, WritesAThumbnailPerAcceptedPhoto) {
+  fs::remove(root_ / "b.jpg");
+  StageRecord ingest;
+  ingest.name = "ingest";
+  ingest.status = StageStatus::kSuccess;
+  const StageResult result = RunExport({ingest});
+  ASSERT_EQ(result.status, StageStatus::kSuccess) << result.message;
+  EXPECT_EQ(result.summary["deliverables"], 3);
+  const fs::path photos = workspace_.output_dir / "report" / "photos";
+  const cv::Mat a = cv::imread((photos / "a.jpg").string());
+  EXPECT_EQ(a.size(), cv::Size(256, 192));
+  const cv::Mat d = cv::imread((photos / "d.jpg").string());
+  EXPECT_EQ(d.size(), cv::Size(192, 256));
+  EXPECT_FALSE(fs::exists(photos / "b.jpg"));
+  EXPECT_FALSE(fs::exists(photos / "e.jpg")) << "refused at ingest";
+  auto images = ReadIngestedImages(workspace_);
+  ASSERT_TRUE(images.ok());
+  const std::map<int, std::string> paths = ThumbnailPaths(*images);
+  EXPECT_EQ(paths.size(), 4u);
+  EXPECT_EQ(paths.at(3), "report/photos/d.jpg");
 }
 
 TEST(ExportStage, IsNotResumable) {

@@ -1,10 +1,13 @@
-// The last stage: report.json, manifest.json and result.zip.
+// The last stage: report.json, report.html, manifest.json and result.zip.
 //
 // report.json records every earlier stage (status, seconds, peak memory, its summary counts),
-// the options the run used, and the totals. The whole output folder is then packed into the
-// workspace's archive (when one is set) with a manifest of sizes and SHA-256 sums; the stage's
-// result then carries the archive as a PackageResult (its summary keeps the figures for the
-// job's stage status and the log).
+// the options the run used, and the totals. report.html shows the same with the report's
+// pictures (core/pipeline/report_html.h), linking only files the archive holds. The output
+// folder is then packed into the workspace's archive (when one is set) with a manifest of
+// sizes and SHA-256 sums; with package_dense_files off, dense.ply, depth/ and quality/ stay in
+// the folder but out of the archive and its manifest (summary "left_out"). The stage's result
+// then carries the archive as a PackageResult (its summary keeps the figures for the job's
+// stage status and the log).
 #ifndef RECONDUIT_CORE_PIPELINE_STAGES_PACKAGE_STAGE_H_
 #define RECONDUIT_CORE_PIPELINE_STAGES_PACKAGE_STAGE_H_
 

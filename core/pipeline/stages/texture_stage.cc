@@ -5,16 +5,20 @@
 #include "core/io/mesh_ply.h"
 #include "core/io/reconstruction_json.h"
 #include "core/pipeline/held_out.h"
+#include "core/pipeline/stages/dense_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/texture/render_textured_mesh.h"
 #include "core/texture/texture_mesh.h"
 #include "core/util/logging.h"
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <stdexcept>
+#include <tuple>
 
 namespace reconduit {
 namespace {
@@ -86,17 +90,65 @@ Result<std::vector<TextureView>> TextureViews(const Workspace& workspace,
 // Width of the renders that compare the model with each photo (the 1024 px).
 constexpr int kCompareWidth = 1024;
 
+// report.html shows the render beside its photo for the first photo and up to
+// kReportPictures - 1 more spread over the others: a few are enough to judge the model, and
+// each pair costs about 60 kB of result.zip (JPEG at kReportJpegQuality, kReportWidth wide).
+constexpr std::size_t kReportPictures = 4;
+constexpr int kReportWidth = 512;
+constexpr int kReportJpegQuality = 85;
+
+bool ShowsInReport(std::size_t view, std::size_t num_views) {
+  const std::size_t shown = std::min(kReportPictures, num_views);
+  for (std::size_t k = 0; k < shown; ++k) {
+    if (view == k * num_views / shown) return true;
+  }
+  return false;
+}
+
+// The render and the photo (the same size; the render carries the camera's distortion, so
+// they line up without undistorting the photo) as <stem>_render.jpg and <stem>_photo.jpg in
+// `dir` (the stage's report/ folder, which the export copies to output/report/texture/), and
+// their paths in result.zip in `entry`.
+Status WriteReportPictures(const cv::Mat& render,
+                           const cv::Mat& photo,
+                           const fs::path& dir,
+                           const std::string& stem,
+                           nlohmann::json* entry) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  const double scale = std::min(1.0, static_cast<double>(kReportWidth) / render.cols);
+  const cv::Size size(std::max(1, static_cast<int>(std::lround(render.cols * scale))),
+                      std::max(1, static_cast<int>(std::lround(render.rows * scale))));
+  for (const auto& [image, suffix, key] : {std::tuple{&render, "_render.jpg", "render_picture"},
+                                           std::tuple{&photo, "_photo.jpg", "photo_picture"}}) {
+    cv::Mat small;
+    cv::resize(*image, small, size, 0, 0, cv::INTER_AREA);
+    const fs::path path = dir / (stem + suffix);
+    if (ec || !cv::imwrite(path.string(), small, {cv::IMWRITE_JPEG_QUALITY, kReportJpegQuality}))
+      return Status::Internal("cannot write " + path.string());
+    (*entry)[key] = "report/texture/" + stem + suffix;
+  }
+  return Status::Ok();
+}
+
 // The model rendered through each photo's camera at kCompareWidth pixels wide, against the
 // photo resized to that size: the share of the photo the model covers, and the mean absolute
 // difference of the covered pixels (grey levels 0-255, mean over the three channels). Both are
 // per photo in report.json; the same figures for photos held out of texturing will tell how
-// well the model predicts a view it was not made from.
-nlohmann::json CompareWithPhotos(const TriangleMesh& mesh,
-                                 const std::vector<TextureView>& views,
-                                 const std::vector<std::string>& held_out,
-                                 const CancelToken& cancel) {
+// well the model predicts a view it was not made from. `ids` are the views' image ids; a few
+// renders are kept as pictures in `picture_dir` (WriteReportPictures): the spread ones and the
+// first kReportPictures held-out photos.
+Result<nlohmann::json> CompareWithPhotos(const TriangleMesh& mesh,
+                                         const std::vector<TextureView>& views,
+                                         const std::vector<std::string>& held_out,
+                                         const std::vector<int>& ids,
+                                         const std::map<int, std::string>& stems,
+                                         const fs::path& picture_dir,
+                                         const CancelToken& cancel) {
+  std::size_t held_out_pictures = 0;
   nlohmann::json renders = nlohmann::json::array();
-  for (const TextureView& view : views) {
+  for (std::size_t k = 0; k < views.size(); ++k) {
+    const TextureView& view = views[k];
     cancel.ThrowIfCanceled();
     const double scale = static_cast<double>(kCompareWidth) / view.camera.width;
     const Camera camera = view.camera.Scaled(scale);
@@ -109,10 +161,20 @@ nlohmann::json CompareWithPhotos(const TriangleMesh& mesh,
     const int covered = cv::countNonZero(render.coverage);
     const cv::Scalar sum = cv::sum(difference.setTo(cv::Scalar::all(0), render.coverage == 0));
     const double mad = covered > 0 ? (sum[0] + sum[1] + sum[2]) / (3.0 * covered) : NAN;
-    renders.push_back({{"name", view.name},
-                       {"held_out", IsHeldOut(held_out, view.name)},
-                       {"covered", static_cast<double>(covered) / render.coverage.total()},
-                       {"mean_abs_diff", std::isfinite(mad) ? nlohmann::json(mad) : nullptr}});
+    const bool is_held_out = IsHeldOut(held_out, view.name);
+    nlohmann::json entry = {{"name", view.name},
+                            {"image_id", ids[k]},
+                            {"held_out", is_held_out},
+                            {"covered", static_cast<double>(covered) / render.coverage.total()},
+                            {"mean_abs_diff", std::isfinite(mad) ? nlohmann::json(mad) : nullptr}};
+    const bool held_out_picture = is_held_out && held_out_pictures < kReportPictures;
+    if (ShowsInReport(k, views.size()) || held_out_picture) {
+      held_out_pictures += held_out_picture;
+      const Status s =
+          WriteReportPictures(render.image, photo, picture_dir, stems.at(ids[k]), &entry);
+      if (!s.ok()) return s;
+    }
+    renders.push_back(std::move(entry));
   }
   return renders;
 }
@@ -169,7 +231,13 @@ StageResult TextureStage::Run(StageContext& context) const {
                                        GltfCameras(*model), GltfOptions(), &gltf);
   if (!written.ok()) return StageResult::Failed(written.message());
   context.progress.SetMessage("comparing the model with the photos");
-  const nlohmann::json renders = CompareWithPhotos(textured.mesh, *views, held_out, context.cancel);
+  std::vector<int> ids;
+  for (const auto& [id, image] : model->images) ids.push_back(id);  // The views' order.
+  const auto found =
+      CompareWithPhotos(textured.mesh, *views, held_out, ids, PerPhotoFileNames(*model),
+                        context.stage_dir / "report", context.cancel);
+  if (!found.ok()) return StageResult::Failed(found.status().message());
+  const nlohmann::json& renders = *found;
   LOG_INFO << "texture: " << textured.summary.num_charts << " charts on "
            << textured.summary.num_pages << " pages, " << textured.summary.num_unseen_faces
            << " of " << textured.summary.num_faces << " faces unseen; model.glb " << gltf.file_bytes
@@ -188,7 +256,17 @@ Result<std::vector<std::string>> ExportTexturedModel(const Workspace& workspace,
   std::error_code ec;
   fs::copy_file(model, out / "model.glb", fs::copy_options::overwrite_existing, ec);
   if (ec) return Status::Internal("cannot copy model.glb: " + ec.message());
-  return std::vector<std::string>{"model.glb"};
+  std::vector<std::string> files = {"model.glb"};
+  // The renders beside their photos (CompareWithPhotos), replacing those of an earlier run.
+  const fs::path pictures = out / "report" / "texture";
+  fs::remove_all(pictures, ec);
+  for (const auto& entry : fs::directory_iterator(workspace.StageDir("texture") / "report", ec)) {
+    fs::create_directories(pictures, ec);
+    if (!ec) fs::copy_file(entry.path(), pictures / entry.path().filename(), ec);
+    if (ec) return Status::Internal("cannot copy " + entry.path().string() + ": " + ec.message());
+    files.push_back("report/texture/" + entry.path().filename().string());
+  }
+  return files;
 }
 
 Result<std::vector<std::string>> ExportUntexturedModel(const Workspace& workspace,

@@ -22,7 +22,9 @@ class TextureStage : public Stage {
   std::string_view Name() const override { return "texture"; }
   std::string_view Title() const override { return "Texturing the surface"; }
   double Weight() const override { return 1.0; }
-  std::vector<std::string> OptionsUsed() const override { return {"texture", "texture_page_size", "held_out_photos"}; }
+  std::vector<std::string> OptionsUsed() const override {
+    return {"texture", "texture_page_size", "held_out_photos"};
+  }
   StageResult Run(StageContext& context) const override;
 };
 
