@@ -265,14 +265,22 @@ TEST(PerPhotoFileNamesTest, OfAModelByImageId) {
 namespace reconduit {
 namespace {
 
-StageResult RunMeshStage(const Workspace& workspace, const PipelineOptions& options) {
-  fs::remove_all(workspace.StageDir("mesh"));
-  fs::create_directories(workspace.StageDir("mesh"));
+// Runs `stage` in a fresh folder of its own.
+StageResult RunStage(const Stage& stage,
+                     const Workspace& workspace,
+                     const PipelineOptions& options) {
+  const fs::path dir = workspace.StageDir(stage.Name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
   Progress progress;
   CancelToken cancel;
   std::vector<StageRecord> previous;
-  StageContext context{workspace, options, progress, cancel, previous, workspace.StageDir("mesh")};
-  return MeshStage().Run(context);
+  StageContext context{workspace, options, progress, cancel, previous, dir};
+  return stage.Run(context);
+}
+
+StageResult RunMeshStage(const Workspace& workspace, const PipelineOptions& options) {
+  return RunStage(MeshStage(), workspace, options);
 }
 
 TEST_F(DenseStageTest, MeshStageMeshesTheFloor) {
@@ -315,14 +323,7 @@ TEST_F(DenseStageTest, MeshStageMeshesTheFloor) {
 }
 
 StageResult RunTextureStage(const Workspace& workspace, const PipelineOptions& options) {
-  fs::remove_all(workspace.StageDir("texture"));
-  fs::create_directories(workspace.StageDir("texture"));
-  Progress progress;
-  CancelToken cancel;
-  std::vector<StageRecord> previous;
-  StageContext context{workspace, options,  progress,
-                       cancel,    previous, workspace.StageDir("texture")};
-  return TextureStage().Run(context);
+  return RunStage(TextureStage(), workspace, options);
 }
 
 // A held-out photo (option held_out_photos) gets no depth map, gives no point and no texel,
