@@ -608,6 +608,13 @@ async function renderFiles(job) {
   };
   const caption = (name) => {
     if (captions[name]) return captions[name];
+    const photo = /^report\/photos\/(.*)\.jpg$/.exec(name);
+    if (photo) return `${photo[1]}: the photo`;
+    const render = /^report\/texture\/(.*)_(render|photo)\.jpg$/.exec(name);
+    if (render) {
+      return render[2] === 'render' ? `${render[1]}: the model seen through this photo's camera`
+                                    : `${render[1]}: the photo the model is compared with`;
+    }
     const dense = /^report\/dense\/(.*)_(depth|quality)\.(jpg|png)$/.exec(name);
     if (!dense) return name;
     return dense[2] === 'depth' ? `${dense[1]}: depth (red near, blue far, black: none)`

@@ -173,6 +173,9 @@ test('uploads photos, follows the job to the end, shows the results, deletes the
     }, name);
   }
   assert.match(await page.textContent('#pictures'), /kermit010: depth \(red near, blue far/);
+  assert.match(await page.textContent('#pictures'),
+               /kermit000: the model seen through this photo's camera/);
+  assert.match(await page.textContent('#pictures'), /kermit000: the photo the model is compared/);
   const files = await page.$$eval('#files-list a', (links) => links.map((a) => a.textContent));
   for (const name of ['cameras.json', 'sparse.ply', 'report.json', 'dense.ply', 'model.glb']) {
     assert.ok(files.includes(name), name);
