@@ -51,7 +51,10 @@ std::string CheckType(const po::options_description& options,
   if (description == nullptr) return "";
   try {
     boost::any value;
-    description->semantic()->parse(value, option.value, true);
+    // Not UTF-8 (the last argument): po::store takes the bytes as they are, and so does this
+    // check. With UTF-8 a byte sequence that is not valid UTF-8 (a Latin-1 folder name) threw
+    // std::logic_error "character conversion failed" out of ParseSettings (found by fuzzing).
+    description->semantic()->parse(value, option.value, /*utf8=*/false);
   } catch (const po::error&) {
     return "invalid value '" + TextOf(option) + "' for " + where;
   }
