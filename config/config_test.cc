@@ -184,6 +184,17 @@ TEST_F(ConfigTest, ValuesThatAreNotUtf8AreKeptAsBytes) {
   EXPECT_THAT(err_.str(), HasSubstr("invalid value"));
 }
 
+// Found by fuzz/config_fuzzer.cc (corpus: fuzz/corpus/config/placeholder-loop): Boost fills in
+// a message's placeholders until none is left, so a value holding one never returned.
+TEST_F(ConfigTest, ValuesLookingLikeMessagePlaceholdersAreQuotedAsTheyAre) {
+  const std::string file = WriteFile("x '%invalid_line%'\n");
+  EXPECT_EQ(Parse({"--config", file}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("invalid line 'x '%invalid_line%''"));
+  EXPECT_EQ(Parse({"--%canonical_option%"}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("'--%canonical_option%'"));
+  EXPECT_EQ(Parse({"--threads", "1", "--threads=%value%"}), 2);
+}
+
 TEST_F(ConfigTest, SectionsOfOtherProgramsAreSkipped) {
   const std::string file = WriteFile(
       "data = shared\n"
