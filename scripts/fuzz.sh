@@ -6,6 +6,7 @@
 #   SECONDS  fuzzing time per target (default 60); 0 only replays the seed corpus
 #   TARGET   e.g. multipart zip (default: every fuzz/*_fuzzer.cc)
 # Prints per target the executions, executions per second and whether it found anything.
+# Runs two targets at a time (RECONDUIT_FUZZ_JOBS=N for another number).
 # Inputs it generates go to build/fuzz/corpus/<target>/ (kept between runs, not in the repo);
 # a finding is saved as build/fuzz/findings/<target>/crash-* (or leak-, timeout-, oom-) and
 # makes the script exit 1. Reproduce one with: build/fuzz/fuzz/<target>_fuzzer FILE
@@ -26,35 +27,51 @@ cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz
 echo "fuzz: build took $(( $(date +%s) - build_start )) s"
 
-status=0
-summary=()
-for t in "${targets[@]}"; do
-  binary="build/fuzz/fuzz/${t}_fuzzer"
-  work="build/fuzz/corpus/$t"
-  findings="build/fuzz/findings/$t"
-  log="build/fuzz/logs/$t.log"
-  mkdir -p "$work" "$findings" "$(dirname "$log")"
+# run_one TARGET: fuzzes one target, writes its summary line to build/fuzz/logs/TARGET.result.
+run_one() {
+  local t="$1" rc=0
+  local binary="build/fuzz/fuzz/${t}_fuzzer" work="build/fuzz/corpus/$t"
+  local findings="build/fuzz/findings/$t" log="build/fuzz/logs/$t.log"
+  mkdir -p "$work" "$findings" build/fuzz/logs
   rm -f "$findings"/*
   # -max_total_time bounds the run; a single input over -timeout seconds or -rss_limit_mb is a
   # finding too (hangs and memory blow-ups on tiny inputs are what a client could exploit).
-  rc=0
   "$binary" -max_total_time="$seconds" -runs=$([ "$seconds" = 0 ] && echo 0 || echo -1) \
     -timeout=10 -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 \
     -artifact_prefix="$findings/" "$work" "fuzz/corpus/$t" >"$log" 2>&1 || rc=$?
+  local runs rate found result
   runs=$(grep -oE 'stat::number_of_executed_units: *[0-9]+' "$log" | grep -oE '[0-9]+$' || echo "?")
   rate=$(grep -oE 'exec/s: *[0-9]+' "$log" | tail -1 | grep -oE '[0-9]+$' || echo "?")
   found=$(ls "$findings" 2>/dev/null | head -5 | tr '\n' ' ')
   if [ $rc -ne 0 ] || [ -n "$found" ]; then
     result="FOUND: ${found:-exit status $rc} (log: $log)"
-    status=1
-    grep -m5 -E 'ERROR|fuzz check failed|runtime error|what\(\)' "$log" | sed 's/^/    /' || true
   else
     result="nothing found"
   fi
-  line=$(printf '%-14s %10s runs %8s exec/s  %s' "$t" "$runs" "$rate" "$result")
-  echo "fuzz: $line"
-  summary+=("$line")
+  printf '%-14s %10s runs %8s exec/s  %s\n' "$t" "$runs" "$rate" "$result" \
+    >"build/fuzz/logs/$t.result"
+}
+
+# Two targets at a time (RECONDUIT_FUZZ_JOBS): each libFuzzer process uses one core.
+jobs="${RECONDUIT_FUZZ_JOBS:-2}"
+run_start=$(date +%s)
+running=0
+for t in "${targets[@]}"; do
+  run_one "$t" &
+  running=$((running + 1))
+  if [ "$running" -ge "$jobs" ]; then wait -n; running=$((running - 1)); fi
 done
-echo "fuzz: ${seconds} s per target:"
-printf '  %s\n' "${summary[@]}"
+wait
+
+status=0
+echo "fuzz: ${seconds} s per target, $jobs at a time, $(( $(date +%s) - run_start )) s:"
+for t in "${targets[@]}"; do
+  line=$(cat "build/fuzz/logs/$t.result")
+  echo "  $line"
+  if [[ "$line" == *FOUND* ]]; then
+    status=1
+    grep -m5 -E 'ERROR|fuzz check failed|runtime error|what\(\)' "build/fuzz/logs/$t.log" |
+      sed 's/^/      /' || true
+  fi
+done
 exit $status
