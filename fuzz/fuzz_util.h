@@ -27,14 +27,15 @@ inline std::string_view AsText(const std::uint8_t* data, std::size_t size) {
 }
 
 // One file per process for the parsers that read a path (zip reader, configuration file),
-// rewritten for every input: in /dev/shm when it exists, so no disk is touched.
+// rewritten for every input: in $RECONDUIT_FUZZ_SCRATCH (a folder scripts/fuzz.sh creates in
+// /dev/shm and removes afterwards: libFuzzer ends with _Exit, so nothing here can clean up),
+// else in /dev/shm or $TMPDIR.
 inline const std::string& ScratchPath(std::string_view suffix) {
   static const std::string path = [&] {
-    const char* dir = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : std::getenv("TMPDIR");
-    std::string p = std::string(dir ? dir : "/tmp") + "/reconduit-fuzz-" +
-                    std::to_string(getpid()) + std::string(suffix);
-    std::atexit([] { std::remove(path.c_str()); });
-    return p;
+    const char* dir = std::getenv("RECONDUIT_FUZZ_SCRATCH");
+    if (dir == nullptr) dir = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : std::getenv("TMPDIR");
+    return std::string(dir ? dir : "/tmp") + "/reconduit-fuzz-" + std::to_string(getpid()) +
+           std::string(suffix);
   }();
   return path;
 }

@@ -27,6 +27,11 @@ cmake --preset fuzz >/dev/null
 cmake --build --preset fuzz
 echo "fuzz: build took $(( $(date +%s) - build_start )) s"
 
+# The zip and config targets write each input to a file: in a folder of their own, in memory.
+RECONDUIT_FUZZ_SCRATCH=$(mktemp -d /dev/shm/reconduit-fuzz.XXXXXX 2>/dev/null || mktemp -d)
+export RECONDUIT_FUZZ_SCRATCH
+trap 'rm -rf "$RECONDUIT_FUZZ_SCRATCH"' EXIT
+
 # run_one TARGET: fuzzes one target, writes its summary line to build/fuzz/logs/TARGET.result.
 run_one() {
   local t="$1" rc=0
