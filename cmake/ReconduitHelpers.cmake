@@ -20,6 +20,13 @@ function(reconduit_set_target_options target)
                                              -fno-sanitize-recover=undefined)
     target_link_options(${target} PRIVATE -fsanitize=address,undefined)
   endif()
+  if(RECONDUIT_FUZZ)
+    # Coverage for libFuzzer in every library a fuzz target links; the targets themselves add
+    # -fsanitize=fuzzer at link time (fuzz/CMakeLists.txt).
+    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined
+                                             -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
 endfunction()
 
 # reconduit_add_library(NAME util SRCS a.cc b.cc PUBLIC_LINK_LIBS ... PRIVATE_LINK_LIBS ...)

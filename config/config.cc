@@ -20,6 +20,29 @@ std::string TextOf(const po::option& option) {
   return option.value.empty() ? std::string() : option.value.front();
 }
 
+// The placeholders of a message ("%canonical_option%", "%invalid_line%") are filled in by
+// what(), and Boost 1.74 replaces a placeholder until none is left: a value that contains its
+// own placeholder (a config line "x %invalid_line%", found by fuzzing) loops forever. So the
+// '%' of every substituted value is swapped for a byte messages never hold before what() runs,
+// and swapped back in the text it returns.
+struct SubstitutionsOf : po::error_with_option_name {
+  static std::map<std::string, std::string>& Of(po::error_with_option_name& e) {
+    return e.*(&SubstitutionsOf::m_substitutions);
+  }
+};
+
+std::string MessageOf(const po::error& error) {
+  const auto* named = dynamic_cast<const po::error_with_option_name*>(&error);
+  if (named == nullptr) return error.what();
+  po::error_with_option_name copy = *named;
+  for (auto& [placeholder, value] : SubstitutionsOf::Of(copy)) {
+    std::replace(value.begin(), value.end(), '%', '\x01');
+  }
+  std::string message = copy.what();
+  std::replace(message.begin(), message.end(), '\x01', '%');
+  return message;
+}
+
 // --help and --config, which every program has, followed by the program's options.
 po::options_description AllOptions(const ProgramSettings& program) {
   std::string others;
@@ -51,7 +74,10 @@ std::string CheckType(const po::options_description& options,
   if (description == nullptr) return "";
   try {
     boost::any value;
-    description->semantic()->parse(value, option.value, true);
+    // Not UTF-8 (the last argument): po::store takes the bytes as they are, and so does this
+    // check. With UTF-8 a byte sequence that is not valid UTF-8 (a Latin-1 folder name) threw
+    // std::logic_error "character conversion failed" out of ParseSettings (found by fuzzing).
+    description->semantic()->parse(value, option.value, /*utf8=*/false);
   } catch (const po::error&) {
     return "invalid value '" + TextOf(option) + "' for " + where;
   }
@@ -79,7 +105,7 @@ std::string Store(const po::options_description& all,
   try {
     po::store(parsed, settings->values);
   } catch (const po::error& e) {
-    return e.what();
+    return MessageOf(e);
   }
   return "";
 }
@@ -127,7 +153,7 @@ std::string ReadConfigFile(const ProgramSettings& program,
   try {
     raw = po::parse_config_file(file, none, /*allow_unregistered=*/true).options;
   } catch (const po::error& e) {
-    return in + e.what();
+    return in + MessageOf(e);
   }
   std::set<std::string> seen;
   for (po::option& option : raw) {
@@ -196,7 +222,7 @@ std::optional<int> ParseSettings(const ProgramSettings& program,
   try {
     command_line = po::command_line_parser(args).options(all).run();
   } catch (const po::error& e) {
-    err << prefix << e.what() << " (see --help)\n";
+    err << prefix << MessageOf(e) << " (see --help)\n";
     return 2;
   }
   for (const po::option& option : command_line.options) {
@@ -233,7 +259,7 @@ std::optional<int> ParseSettings(const ProgramSettings& program,
   try {
     po::notify(settings->values);
   } catch (const po::error& e) {
-    err << prefix << e.what() << " (see --help)\n";
+    err << prefix << MessageOf(e) << " (see --help)\n";
     return 2;
   }
   return std::nullopt;

@@ -169,6 +169,32 @@ TEST_F(ConfigTest, BadFileStopsWithStatus2NamingFileAndName) {
   EXPECT_THAT(err_.str(), HasSubstr("cannot read the config file '" + missing + "'"));
 }
 
+// Found by fuzz/config_fuzzer.cc (corpus: fuzz/corpus/config/invalid-utf8): a value that is
+// not valid UTF-8 threw out of ParseSettings instead of being taken as the bytes it is.
+TEST_F(ConfigTest, ValuesThatAreNotUtf8AreKeptAsBytes) {
+  const std::string latin1 = "caf\xe9-\xd9\xd9";
+  const std::string file = WriteFile("data = " + latin1 + "\n");
+  ASSERT_EQ(Parse({"--config", file}), std::nullopt) << err_.str();
+  EXPECT_EQ(settings_.values["data"].as<std::string>(), latin1);
+  ASSERT_EQ(Parse({"--data", latin1}), std::nullopt) << err_.str();
+  EXPECT_EQ(settings_.values["data"].as<std::string>(), latin1);
+  ASSERT_EQ(Parse({}, {{"RECONDUIT_DATA", latin1}}), std::nullopt) << err_.str();
+  EXPECT_EQ(settings_.values["data"].as<std::string>(), latin1);
+  EXPECT_EQ(Parse({"--threads", "\xd9"}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("invalid value"));
+}
+
+// Found by fuzz/config_fuzzer.cc (corpus: fuzz/corpus/config/placeholder-loop): Boost fills in
+// a message's placeholders until none is left, so a value holding one never returned.
+TEST_F(ConfigTest, ValuesLookingLikeMessagePlaceholdersAreQuotedAsTheyAre) {
+  const std::string file = WriteFile("x '%invalid_line%'\n");
+  EXPECT_EQ(Parse({"--config", file}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("invalid line 'x '%invalid_line%''"));
+  EXPECT_EQ(Parse({"--%canonical_option%"}), 2);
+  EXPECT_THAT(err_.str(), HasSubstr("'--%canonical_option%'"));
+  EXPECT_EQ(Parse({"--threads", "1", "--threads=%value%"}), 2);
+}
+
 TEST_F(ConfigTest, SectionsOfOtherProgramsAreSkipped) {
   const std::string file = WriteFile(
       "data = shared\n"

@@ -22,7 +22,7 @@ runtime_packages=(
   libgmp10 libmpfr6 libmaxflow0 libmeshoptimizer2d
 )
 
-# Toolchain, headers and test tools.
+# Toolchain, headers and test tools (clang with libFuzzer only for the fuzz targets, fuzz/).
 build_packages=(
   build-essential cmake ninja-build pkg-config git clang-format ccache python3
   libeigen3-dev libopencv-dev libceres-dev libsuitesparse-dev libopenblas-dev
@@ -30,6 +30,7 @@ build_packages=(
   nlohmann-json3-dev libsqlite3-dev libzip-dev libtinygltf-dev libexiv2-dev libssl-dev
   libgtest-dev libgmock-dev
   libcgal-dev libmaxflow-dev libmeshoptimizer-dev
+  clang libclang-rt-14-dev
   curl zip unzip
 )
 

@@ -243,7 +243,9 @@ Result<PipelineOptions> ParsePipelineOptionsText(const std::string& text) {
   nlohmann::json json;
   try {
     json = text.empty() ? nlohmann::json::object() : nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error for bad syntax, and out_of_range for a number that overflows a double
+    // ("1e999"), which escaped as an exception before (found by fuzzing).
     return Status::InvalidArgument(std::string("options are not valid JSON: ") + e.what());
   }
   return ParsePipelineOptions(json);

@@ -67,6 +67,18 @@ TEST(ParsePipelineOptions, RejectsBadInputWithClearMessages) {
   }
 }
 
+// Found by fuzz/options_fuzzer.cc (corpus: fuzz/corpus/options/number-overflow): a number too
+// large for a double threw nlohmann's out_of_range out of ParsePipelineOptionsText.
+TEST(ParsePipelineOptions, NumberOverflowIsAnError) {
+  for (const char* text : {"6E452", R"({"max_image_pixels": 1e999})", "-1E400"}) {
+    Result<PipelineOptions> options = PipelineOptions();
+    ASSERT_NO_THROW(options = ParsePipelineOptionsText(text)) << text;
+    ASSERT_FALSE(options.ok()) << text;
+    EXPECT_EQ(options.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_THAT(options.status().message(), HasSubstr("not valid JSON")) << text;
+  }
+}
+
 TEST(DescribePipelineOptions, ListsEveryOptionWithDefaultsAndRanges) {
   const nlohmann::json described = DescribePipelineOptions();
   ASSERT_EQ(described["options"].size(), PipelineOptionSpecs().size());
