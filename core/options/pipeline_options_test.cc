@@ -146,7 +146,8 @@ TEST(ParsePipelineOptions, HeldOutPhotosAreAListOfNames) {
   EXPECT_FALSE(ParsePipelineOptions({{"held_out_photos", many}}).ok());
   many.erase(many.begin());
   EXPECT_TRUE(ParsePipelineOptions({{"held_out_photos", many}}).ok());
-  for (const nlohmann::json& option : DescribePipelineOptions()["options"]) {
+  const nlohmann::json described = DescribePipelineOptions();  // Outlives the loop.
+  for (const nlohmann::json& option : described["options"]) {
     if (option["name"] == "held_out_photos") {
       EXPECT_EQ(option["type"], "array");
       EXPECT_EQ(option["default"], nlohmann::json::array());
