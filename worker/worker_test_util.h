@@ -3,6 +3,7 @@
 #ifndef RECONDUIT_WORKER_WORKER_TEST_UTIL_H_
 #define RECONDUIT_WORKER_WORKER_TEST_UTIL_H_
 
+#include "core/io/zip_test_util.h"  // ReadZipEntries, used by the worker tests.
 #include "worker/pipeline_driver.h"
 
 #include <atomic>
@@ -67,9 +68,6 @@ struct ToyPipeline {
   int sleep_ms = 2000;
   std::shared_ptr<ToyStageRuns> runs = std::make_shared<ToyStageRuns>();
 };
-
-// The entries of a zip file: name -> bytes. Throws when it cannot be read.
-std::map<std::string, std::string> ReadZipEntries(const std::filesystem::path& zip);
 
 // Stages "ingest" (the real one), "toy" (behaves as told) and "package" (the real one).
 StageListFactory MakeToyPipeline(const ToyPipeline& toy);

@@ -1,10 +1,10 @@
 #include "core/io/result_archive.h"
 
 #include "core/io/file_util.h"
+#include "core/io/zip_test_util.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <zip.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -30,26 +30,6 @@ class ResultArchiveTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(root_); }
 
-  // name -> contents of every entry in a zip.
-  static std::map<std::string, std::string> ReadZip(const fs::path& path) {
-    std::map<std::string, std::string> entries;
-    int error = 0;
-    zip_t* archive = zip_open(path.c_str(), ZIP_RDONLY, &error);
-    EXPECT_NE(archive, nullptr);
-    if (archive == nullptr) return entries;
-    for (zip_int64_t i = 0; i < zip_get_num_entries(archive, 0); ++i) {
-      zip_stat_t st;
-      zip_stat_index(archive, i, 0, &st);
-      std::string data(st.size, '\0');
-      zip_file_t* file = zip_fopen_index(archive, i, 0);
-      zip_fread(file, data.data(), st.size);
-      zip_fclose(file);
-      entries[st.name] = data;
-    }
-    zip_close(archive);
-    return entries;
-  }
-
   fs::path root_;
 };
 
@@ -59,7 +39,7 @@ TEST_F(ResultArchiveTest, PacksEveryFileWithAVerifiableManifest) {
   ASSERT_TRUE(summary.ok()) << summary.status();
   EXPECT_FALSE(fs::exists(root_ / "result.zip.tmp"));
 
-  const auto entries = ReadZip(root_ / "result.zip");
+  const auto entries = testing_util::ReadZipEntries(root_ / "result.zip");
   ASSERT_EQ(entries.size(), 3u) << "report, cameras, manifest; never the symlink";
   EXPECT_EQ(entries.at("sparse/cameras.txt"), "# cams\n");
   const auto manifest = nlohmann::json::parse(entries.at("manifest.json"));
@@ -78,7 +58,7 @@ TEST_F(ResultArchiveTest, RewritingReplacesTheArchive) {
   ASSERT_TRUE(WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken()).ok());
   ASSERT_TRUE(WriteFileAtomically(root_ / "out" / "extra.txt", "more").ok());
   ASSERT_TRUE(WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken()).ok());
-  EXPECT_EQ(ReadZip(root_ / "result.zip").count("extra.txt"), 1u);
+  EXPECT_EQ(testing_util::ReadZipEntries(root_ / "result.zip").count("extra.txt"), 1u);
 }
 
 // The lean archive: a folder entry leaves out everything under it, a file entry that file
@@ -98,7 +78,7 @@ TEST_F(ResultArchiveTest, LeavesOutExcludedFilesAndFoldersFromZipAndManifest) {
 
   auto summary = WriteResultArchive(root_ / "out", root_ / "result.zip", CancelToken(), excluded);
   ASSERT_TRUE(summary.ok()) << summary.status();
-  const auto entries = ReadZip(root_ / "result.zip");
+  const auto entries = testing_util::ReadZipEntries(root_ / "result.zip");
   std::vector<std::string> zipped;
   for (const auto& [name, data] : entries) zipped.push_back(name);
   std::vector<std::string> with_manifest = expected;

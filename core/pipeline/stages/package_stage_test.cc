@@ -2,11 +2,11 @@
 
 #include "core/io/file_util.h"
 #include "core/io/reconstruction_json.h"
+#include "core/io/zip_test_util.h"
 #include "core/pipeline/runner.h"
 #include "core/pipeline/stages/ingest_stage.h"
 
 #include <gtest/gtest.h>
-#include <zip.h>
 
 #include <filesystem>
 #include <map>
@@ -100,26 +100,6 @@ TEST(PackageStage, ReportHasEachStagesTimeOwnPeakProcessPeakAndSummary) {
   fs::remove_all(root);
 }
 
-// name -> bytes of every entry of a zip.
-std::map<std::string, std::string> ReadZip(const fs::path& path) {
-  std::map<std::string, std::string> entries;
-  int error = 0;
-  zip_t* archive = zip_open(path.c_str(), ZIP_RDONLY, &error);
-  EXPECT_NE(archive, nullptr) << path;
-  if (archive == nullptr) return entries;
-  for (zip_int64_t i = 0; i < zip_get_num_entries(archive, 0); ++i) {
-    zip_stat_t st;
-    zip_stat_index(archive, i, 0, &st);
-    std::string data(st.size, '\0');
-    zip_file_t* file = zip_fopen_index(archive, i, 0);
-    zip_fread(file, data.data(), st.size);
-    zip_fclose(file);
-    entries[st.name] = data;
-  }
-  zip_close(archive);
-  return entries;
-}
-
 // A job's output as the export leaves it after the dense stage: two photos (the first
 // registered, with its maps and previews; the second refused at ingest, with markup in its
 // name), and the ingest records and the model the package stage reads.
@@ -172,7 +152,7 @@ class PackageLeanTest : public ::testing::Test {
 
   // The zip's entries, checked against its manifest: exactly the same files.
   std::map<std::string, std::string> ZipMatchingItsManifest() {
-    const auto entries = ReadZip(workspace_.archive_path);
+    const auto entries = testing_util::ReadZipEntries(workspace_.archive_path);
     EXPECT_TRUE(entries.count("manifest.json"));
     std::set<std::string> zipped, listed;
     for (const auto& [name, bytes] : entries) {
