@@ -58,9 +58,9 @@ std::unordered_map<std::uint64_t, VertexOffset> BorderOffsets(const std::vector<
     if (chart < 0) continue;
     for (int k = 0; k < 3; ++k) {
       const int v = mesh.faces[f][k];
-      if (!texel.emplace(Key(v, chart), Eigen::Vector3f::Zero()).second) continue;
-      texel[Key(v, chart)] =
-          Bilinear(mesh.texture_pages[mesh.face_pages[f]], AtlasPixel(mesh, f, k));
+      const auto [slot, added] = texel.try_emplace(Key(v, chart));
+      if (!added) continue;
+      slot->second = Bilinear(mesh.texture_pages[mesh.face_pages[f]], AtlasPixel(mesh, f, k));
       if (first_chart[v] < 0) first_chart[v] = chart;
       if (first_chart[v] != chart) border[v] = 1;
     }
