@@ -1,5 +1,6 @@
 #include "core/mvs/patch_match.h"
 
+#include "core/mvs/image_noise.h"
 #include "core/util/logging.h"
 #include "core/util/parallel.h"
 
@@ -201,6 +202,7 @@ struct Planes {
   std::vector<float> depth;
   std::vector<Eigen::Vector3f> normal;
   std::vector<float> cost;
+  float noise_stddev = 0.0f;  // The reference's estimated noise at this level (grey levels).
 };
 
 class PatchMatcher {
@@ -269,6 +271,7 @@ class PatchMatcher {
     planes.depth = std::move(depth_);
     planes.normal = std::move(normal_);
     planes.cost = std::move(cost_);
+    planes.noise_stddev = noise_stddev_;
     return planes;
   }
 
@@ -293,8 +296,14 @@ class PatchMatcher {
     const cv::Mat& gray = input_.reference->gray;
     stats_.mean = cv::Mat(height_, width_, CV_32FC1, cv::Scalar(0));
     stats_.inv_norm = cv::Mat(height_, width_, CV_32FC1, cv::Scalar(0));
-    const float min_norm =
-        static_cast<float>(options_.min_texture_stddev) * std::sqrt(num_samples_);
+    // Texture must stand out of the photo's own noise (core/mvs/image_noise.h); the estimate
+    // is taken at each pyramid level, where averaging has lowered the noise.
+    noise_stddev_ =
+        options_.noise_texture_factor > 0.0 ? static_cast<float>(EstimateNoiseStddev(gray)) : 0.0f;
+    const float min_stddev =
+        std::max(static_cast<float>(options_.min_texture_stddev),
+                 static_cast<float>(options_.noise_texture_factor) * noise_stddev_);
+    const float min_norm = min_stddev * std::sqrt(num_samples_);
     const int r = options_.window_radius;
     ParallelFor(
         static_cast<std::size_t>(r), static_cast<std::size_t>(std::max(r, height_ - r)),
@@ -564,6 +573,7 @@ class PatchMatcher {
   float cos_max_normal_angle_ = 0.0f;
   int top_k_ = 1;
   WindowStats stats_;
+  float noise_stddev_ = 0.0f;
   std::vector<float> depth_;
   std::vector<Eigen::Vector3f> normal_;
   std::vector<float> cost_;
@@ -572,6 +582,7 @@ class PatchMatcher {
 // The depth map of `planes`: pixels costing more than `max_cost` left empty.
 DepthMap Finish(const Planes& planes, double max_cost) {
   DepthMap map;
+  map.noise_stddev = planes.noise_stddev;
   map.depth = cv::Mat(planes.height, planes.width, CV_32FC1, cv::Scalar(0));
   map.normal = cv::Mat(planes.height, planes.width, CV_32FC3, cv::Scalar(0, 0, 0));
   map.cost = cv::Mat(planes.height, planes.width, CV_32FC1, cv::Scalar(kEmptyCost));
@@ -672,6 +683,8 @@ bool PatchMatchOptions::Check(std::string* error) const {
     m << "top_k must be in [1, 16], got " << top_k;
   } else if (!(min_texture_stddev >= 0.0)) {
     m << "min_texture_stddev must be >= 0, got " << min_texture_stddev;
+  } else if (!(noise_texture_factor >= 0.0)) {
+    m << "noise_texture_factor must be >= 0, got " << noise_texture_factor;
   } else if (!(max_cost > 0.0 && max_cost <= 2.0)) {
     m << "max_cost must be in (0, 2], got " << max_cost;
   } else if (!(max_normal_angle_deg > 0.0 && max_normal_angle_deg < 90.0)) {

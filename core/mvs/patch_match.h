@@ -39,7 +39,8 @@
 // CPU); 21-80 s under heavier load.
 //
 // What stays empty (depth 0): pixels whose window has almost no texture (its grey levels'
-// standard deviation below `min_texture_stddev`: the sky, a plain wall, a black background),
+// standard deviation below `min_texture_stddev`, or below `noise_texture_factor` times the
+// photo's estimated noise: the sky, a plain wall, a black background),
 // and pixels whose best cost stays above `max_cost` (nothing matched: occlusions, surfaces seen
 // by no source). A depth map is never filled by guessing.
 //
@@ -89,8 +90,17 @@ struct PatchMatchOptions {
   // of it at 1.0, 0.3-0.45 % at 1.5, none at 2.0 and 2.5, with the same completeness
   // elsewhere; but fountain-P11's maps at 1600 px (where halving has averaged the noise away)
   // lose low-contrast ground: 84-98 % of pixels filled at 1.0, 76-88 % at 2.5 (3.92 against
-  // 3.45 M fused points). 1.5 keeps the panel under the 1 %. >= 0
+  // 3.45 M fused points). 1.5 kept the quick test's panels under the 1 %, but not the
+  // long test's (480 x 360: 2.6 % and 1.5 %): see noise_texture_factor. >= 0
   double min_texture_stddev = 1.5;
+  // ... and below this many times the reference's own noise (estimated per photo and pyramid
+  // level, core/mvs/image_noise.h), when that is higher. Pure noise of standard deviation s
+  // gives windows of about s (25 samples: within +-15 %), so 1.5 leaves them empty while
+  // texture of 1.1 s and more still matches. tests/dense_synthetic_test's plain panels (noise of
+  // 2 grey levels) went from 0.3-0.45 % (320 x 240) and 2.6 % / 1.5 % (480 x 360) covered to
+  // none, completeness elsewhere within 0.3 points; patch_match_test's noisy square from 760
+  // chance pixels to none. 0: the fixed threshold only. >= 0
+  double noise_texture_factor = 1.5;
   // Pixels whose final cost is above this (1 - NCC) are left empty. (0, 2]
   double max_cost = 0.6;
   // Normals more than this many degrees away from facing the camera are not tried. (0, 90)
@@ -112,6 +122,9 @@ struct DepthMap {
   cv::Mat depth;   // CV_32FC1, 0 where empty.
   cv::Mat normal;  // CV_32FC3, unit normals in the camera frame, facing the camera (n.z < 0).
   cv::Mat cost;    // CV_32FC1, the multi-view cost (1 - NCC, [0, 2]); 2 where empty.
+  // The reference's noise as estimated at the working resolution (grey levels; 0 when
+  // PatchMatchOptions::noise_texture_factor is 0).
+  double noise_stddev = 0.0;
 };
 
 // A known depth to start from: a sparse point that projects to `pixel` of the reference.

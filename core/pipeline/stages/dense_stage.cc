@@ -212,6 +212,7 @@ nlohmann::json ComputeOrResumeMap(const ViewPlan& plan, ViewCache* cache, StageC
   figures["seconds"] = timer.ElapsedSeconds();
   figures["sources"] = plan.NumSources();
   figures["depth_fraction"] = DepthFraction(map.depth);
+  figures["noise_stddev"] = map.noise_stddev;
   return figures;
 }
 
@@ -236,7 +237,7 @@ nlohmann::json ComputeMaps(const std::vector<ViewPlan>& plans,
     LOG_INFO << "dense: depth map " << done << "/" << total << " " << plan.name << ": "
              << plan.working.width << "x" << plan.working.height << ", " << plan.NumSources()
              << " sources, " << std::lround(100 * figures["depth_fraction"].get<double>())
-             << " % of pixels, "
+             << " % of pixels, noise " << figures.value("noise_stddev", 0.0) << " grey levels, "
              << (figures.value("resumed", false)
                      ? std::string("kept from an earlier attempt")
                      : std::to_string(figures["seconds"].get<double>()) + " s");
