@@ -160,10 +160,12 @@ TEST(PatchMatch, SlantedPlaneFromRandomStart) {
   EXPECT_GE(e.accuracy, 0.9);
 }
 
-TEST(PatchMatch, TexturelessRegionStaysEmpty) {
+// A textured floor with a plain grey square 1 cm above it in the middle of the view, seen
+// from 5 m above by a centre photo and four 0.6 m to its sides; `noise_stddev` > 0 adds
+// Gaussian sensor noise of that many grey levels to every photo.
+std::vector<TestView> PlainSquareViews(float noise_stddev) {
   TexturedScene scene;
   scene.quads.push_back(Floor(3));
-  // A plain grey square on top of the floor, 1 cm above it, in the middle of the view.
   TexturedQuad plain;
   plain.origin = Eigen::Vector3d(-1, -1, 0.01);
   plain.edge_u = Eigen::Vector3d(2, 0, 0);
@@ -172,12 +174,22 @@ TEST(PatchMatch, TexturelessRegionStaysEmpty) {
   plain.texture.noise_amplitude = 0.0;
   scene.quads.push_back(plain);
   std::vector<TestView> views;
+  std::mt19937_64 rng(23);
+  std::normal_distribution<float> gauss(0.0f, noise_stddev > 0.0f ? noise_stddev : 1.0f);
   for (const Eigen::Vector2d& d :
        {Eigen::Vector2d(0, 0), Eigen::Vector2d(0.6, 0), Eigen::Vector2d(-0.6, 0),
         Eigen::Vector2d(0, 0.6), Eigen::Vector2d(0, -0.6)}) {
     views.push_back(
         Render(scene, Eigen::Vector3d(d.x(), d.y(), 5), Eigen::Vector3d(d.x(), d.y(), 0)));
+    if (noise_stddev <= 0.0f) continue;
+    cv::Mat& gray = views.back().view.gray;
+    for (auto it = gray.begin<float>(); it != gray.end<float>(); ++it) *it += gauss(rng);
   }
+  return views;
+}
+
+TEST(PatchMatch, TexturelessRegionStaysEmpty) {
+  const std::vector<TestView> views = PlainSquareViews(0.0f);
   const DepthMap map = ComputeDepthMap(InputFor(views, 1.0, 50.0), PatchMatchOptions());
   // The plain square spans 2 m at 5 m with f = 300: 120 px around the centre. Well inside it
   // (beyond the window's reach of its textured surroundings) nothing may be filled in.
@@ -195,26 +207,7 @@ TEST(PatchMatch, TexturelessRegionStaysEmpty) {
 // levels, above the fixed threshold (min_texture_stddev), so only the threshold relative to
 // the photo's estimated noise keeps chance matches of noise off it.
 TEST(PatchMatch, NoisyPlainRegionStaysEmpty) {
-  TexturedScene scene;
-  scene.quads.push_back(Floor(3));
-  TexturedQuad plain;
-  plain.origin = Eigen::Vector3d(-1, -1, 0.01);
-  plain.edge_u = Eigen::Vector3d(2, 0, 0);
-  plain.edge_v = Eigen::Vector3d(0, 2, 0);
-  plain.texture.num_layers = 0;
-  plain.texture.noise_amplitude = 0.0;
-  scene.quads.push_back(plain);
-  std::vector<TestView> views;
-  std::mt19937_64 rng(23);
-  std::normal_distribution<float> gauss(0.0f, 3.0f);
-  for (const Eigen::Vector2d& d :
-       {Eigen::Vector2d(0, 0), Eigen::Vector2d(0.6, 0), Eigen::Vector2d(-0.6, 0),
-        Eigen::Vector2d(0, 0.6), Eigen::Vector2d(0, -0.6)}) {
-    views.push_back(
-        Render(scene, Eigen::Vector3d(d.x(), d.y(), 5), Eigen::Vector3d(d.x(), d.y(), 0)));
-    cv::Mat& gray = views.back().view.gray;
-    for (auto it = gray.begin<float>(); it != gray.end<float>(); ++it) *it += gauss(rng);
-  }
+  const std::vector<TestView> views = PlainSquareViews(3.0f);
   const cv::Rect inside(160 - 45, 120 - 45, 90, 90);
   PatchMatchOptions fixed_only;
   fixed_only.noise_texture_factor = 0.0;
