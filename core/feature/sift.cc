@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <numeric>
 #include <sstream>
@@ -13,8 +14,107 @@
 namespace reconduit {
 namespace {
 
-// The position bias of OpenCV's SIFT with its doubled first octave, in working pixels.
+// The position bias of OpenCV's SIFT with its doubled first octave, in the pixels of the
+// image it is given.
 constexpr double kOpenCvSiftOffset = 0.25;
+
+// OpenCV's octave of a keypoint: -1 for the doubled first octave (KeyPoint::octave packs the
+// octave in its low byte, the layer above it).
+int OpenCvOctave(const cv::KeyPoint& keypoint) {
+  const int octave = keypoint.octave & 255;
+  return octave < 128 ? octave : (-128 | octave);
+}
+
+// SIFT candidates in working pixels, bias-free: pixel centres at integers.
+struct Candidates {
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;  // RootSIFT bytes (ToRootSiftBytes), a row per keypoint: a quarter of
+                        // OpenCV's floats, for the hundreds of thousands of a large photo.
+};
+
+// One region of one image to run SIFT on, and which of its keypoints to keep.
+struct Piece {
+  cv::Rect region;      // In the pixels of the image.
+  cv::Rect keep;        // Keypoints whose position falls here are kept (image pixels).
+  int max_octave;       // Keypoints of coarser octaves are left to a coarser image.
+  double to_working_x;  // Working pixels per image pixel.
+  double to_working_y;
+};
+
+void DetectPiece(const cv::Mat& image, const Piece& piece, cv::SIFT& sift, Candidates* out) {
+  // A copy, so that the pixels around the region do not take part (as at the image's border).
+  const cv::Mat region = image(piece.region).clone();
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  // One pass: detect() followed by compute() would build the Gaussian pyramid twice, which
+  // costs more than describing the candidates that the selection then drops.
+  sift.detectAndCompute(region, cv::noArray(), keypoints, descriptors);
+  descriptors = ToRootSiftBytes(descriptors);
+  for (std::size_t i = 0; i < keypoints.size(); ++i) {
+    cv::KeyPoint kp = keypoints[i];
+    if (OpenCvOctave(kp) > piece.max_octave) continue;
+    // OpenCV 4.6 doubles the image with INTER_LINEAR (sample k of the doubled image lies at
+    // k/2 - 1/4 in the input) and then halves positions, so every keypoint is reported 1/4
+    // pixel right of and below where it is (sift_test pins this with blobs at known sub-pixel
+    // centres).
+    const double x = kp.pt.x - kOpenCvSiftOffset + piece.region.x;
+    const double y = kp.pt.y - kOpenCvSiftOffset + piece.region.y;
+    // Pixel p of a piece's own cut decides; a keypoint at the very edge belongs to one piece.
+    const int px = static_cast<int>(std::floor(x + 0.5));
+    const int py = static_cast<int>(std::floor(y + 0.5));
+    if (!piece.keep.contains(cv::Point(px, py))) continue;
+    // Pixel centres at integers in both images: x_working + 0.5 = (x + 0.5) * to_working.
+    kp.pt.x = static_cast<float>((x + 0.5) * piece.to_working_x - 0.5);
+    kp.pt.y = static_cast<float>((y + 0.5) * piece.to_working_y - 0.5);
+    kp.size = static_cast<float>(kp.size * 0.5 * (piece.to_working_x + piece.to_working_y));
+    out->keypoints.push_back(kp);
+    out->descriptors.push_back(descriptors.row(static_cast<int>(i)));
+  }
+}
+
+// The cuts of `length` pixels into pieces of at most `max_part` pixels, as even as possible.
+std::vector<std::pair<int, int>> Cuts(int length, int max_part) {
+  const int parts = (length + max_part - 1) / max_part;
+  std::vector<std::pair<int, int>> cuts;
+  for (int k = 0; k < parts; ++k) {
+    cuts.emplace_back(static_cast<int>(static_cast<long>(length) * k / parts),
+                      static_cast<int>(static_cast<long>(length) * (k + 1) / parts));
+  }
+  return cuts;
+}
+
+// Appends the candidates of `image` (whose pixels are `to_working_*` working pixels), whole
+// when it is small enough, else in tiles and a 4x smaller copy (see sift.h).
+void DetectLevel(const cv::Mat& image,
+                 double to_working_x,
+                 double to_working_y,
+                 const SiftOptions& options,
+                 cv::SIFT& sift,
+                 Candidates* out) {
+  const cv::Rect all(0, 0, image.cols, image.rows);
+  if (image.total() <= static_cast<std::size_t>(options.max_tile_pixels)) {
+    DetectPiece(image, {all, all, INT_MAX, to_working_x, to_working_y}, sift, out);
+    return;
+  }
+  const int max_core = static_cast<int>(std::sqrt(static_cast<double>(options.max_tile_pixels))) -
+                       2 * kSiftTileMargin;
+  for (const auto& [y0, y1] : Cuts(image.rows, max_core)) {
+    for (const auto& [x0, x1] : Cuts(image.cols, max_core)) {
+      const cv::Rect keep(x0, y0, x1 - x0, y1 - y0);
+      const cv::Rect region =
+          cv::Rect(x0 - kSiftTileMargin, y0 - kSiftTileMargin, keep.width + 2 * kSiftTileMargin,
+                   keep.height + 2 * kSiftTileMargin) &
+          all;
+      DetectPiece(image, {region, keep, 0, to_working_x, to_working_y}, sift, out);
+    }
+  }
+  cv::Mat quarter;
+  cv::resize(image, quarter,
+             cv::Size(std::max(1, (image.cols + 2) / 4), std::max(1, (image.rows + 2) / 4)), 0, 0,
+             cv::INTER_AREA);
+  DetectLevel(quarter, to_working_x * image.cols / quarter.cols,
+              to_working_y * image.rows / quarter.rows, options, sift, out);
+}
 
 }  // namespace
 
@@ -35,6 +135,9 @@ bool SiftOptions::Check(std::string* error) const {
     m << "edge_threshold must be in [1, 100], got " << edge_threshold;
   } else if (octave_layers < 1 || octave_layers > 8) {
     m << "octave_layers must be in [1, 8], got " << octave_layers;
+  } else if (max_tile_pixels < kMinSiftTilePixels || max_tile_pixels > (1 << 30)) {
+    m << "max_tile_pixels must be in [" << kMinSiftTilePixels << ", " << (1 << 30) << "], got "
+      << max_tile_pixels;
   } else {
     return true;
   }
@@ -135,21 +238,19 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image,
 
   cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, options.octave_layers, options.contrast_threshold,
                                             options.edge_threshold, 1.6);
-  // One pass: detect() followed by compute() would build the Gaussian pyramid twice, which
-  // costs more than describing the candidates that the selection below then drops.
-  std::vector<cv::KeyPoint> candidates;
-  cv::Mat candidate_descriptors;
-  sift->detectAndCompute(working, cv::noArray(), candidates, candidate_descriptors);
+  Candidates candidates;
+  DetectLevel(working, 1.0, 1.0, options, *sift, &candidates);
+  LOG_DEBUG << "sift: " << candidates.keypoints.size() << " candidates in " << working.cols << "x"
+            << working.rows;
   const std::vector<int> chosen =
-      SelectSpreadKeypoints(candidates, working.cols, working.rows, options.max_features,
+      SelectSpreadKeypoints(candidates.keypoints, working.cols, working.rows, options.max_features,
                             options.spread_fraction, options.grid_cells);
   std::vector<cv::KeyPoint> keypoints;
   keypoints.reserve(chosen.size());
-  cv::Mat descriptors(static_cast<int>(chosen.size()), candidate_descriptors.cols,
-                      candidate_descriptors.type());
+  cv::Mat descriptors(static_cast<int>(chosen.size()), 128, CV_8U);
   for (std::size_t i = 0; i < chosen.size(); ++i) {
-    keypoints.push_back(candidates[chosen[i]]);
-    candidate_descriptors.row(chosen[i]).copyTo(descriptors.row(static_cast<int>(i)));
+    keypoints.push_back(candidates.keypoints[chosen[i]]);
+    candidates.descriptors.row(chosen[i]).copyTo(descriptors.row(static_cast<int>(i)));
   }
 
   FeatureSet features;
@@ -158,21 +259,15 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image,
   features.keypoints.reserve(keypoints.size());
   for (const cv::KeyPoint& kp : keypoints) {
     Keypoint out;
-    // OpenCV 4.6 doubles the image with INTER_LINEAR (sample k of the doubled image lies at
-    // k/2 - 1/4 in the input) and then halves positions, so every keypoint is reported
-    // 1/4 pixel right of and below where it is (sift_test pins this with blobs at known
-    // sub-pixel centres). Then pixel centres at integers in both images:
-    // x_orig + 0.5 = (x_work + 0.5) / s.
-    const double x_work = kp.pt.x - kOpenCvSiftOffset;
-    const double y_work = kp.pt.y - kOpenCvSiftOffset;
-    out.x = static_cast<float>((x_work + 0.5) / sx - 0.5);
-    out.y = static_cast<float>((y_work + 0.5) / sy - 0.5);
+    // Pixel centres at integers in both images: x_orig + 0.5 = (x_work + 0.5) / s.
+    out.x = static_cast<float>((kp.pt.x + 0.5) / sx - 0.5);
+    out.y = static_cast<float>((kp.pt.y + 0.5) / sy - 0.5);
     out.scale = static_cast<float>(kp.size / (0.5 * (sx + sy)));
     out.orientation = static_cast<float>(kp.angle * M_PI / 180.0);
     out.response = kp.response;
     features.keypoints.push_back(out);
   }
-  features.descriptors = ToRootSiftBytes(descriptors);
+  features.descriptors = descriptors;
   return features;
 }
 

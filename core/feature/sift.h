@@ -6,6 +6,20 @@
 // self-calibration of the image borders. Like ARC3D (Vergauwen, "Harnessing
 // Structure-and-Motion", §3.2.1) we keep the strongest (1 - spread_fraction) of the budget
 // and fill the rest with the best remaining candidates cell by cell over a regular grid.
+//
+// Memory. OpenCV keeps the whole Gaussian and DoG pyramids of the doubled image in floats:
+// about 260 bytes per working pixel, 2.7 GB for a 3200 x 3200 working copy. A working copy
+// above `max_tile_pixels` is described in pieces instead, so that a photo's peak stays near
+// 260 * max_tile_pixels bytes whatever its size:
+//  - the two finest octaves (OpenCV's -1 and 0, scales up to about 7 working pixels) on
+//    overlapping tiles, each keeping the keypoints that fall in its own part; the margin
+//    (kSiftTileMargin) covers the blur and the descriptor window of those scales, so a tile
+//    finds what the whole image would up to rounding;
+//  - every coarser octave on a copy downscaled 4x: the doubled first octave of that copy has
+//    the resolution and blur of the working copy's octave 1 (Lowe's pyramid halves the image
+//    per octave), so running SIFT on it gives octaves 1, 2, ... of the working copy; the copy
+//    is itself tiled when still too large.
+// sift_test checks the pieces against the whole image's keypoints and that the peak drops.
 #ifndef RECONDUIT_CORE_FEATURE_SIFT_H_
 #define RECONDUIT_CORE_FEATURE_SIFT_H_
 
@@ -18,6 +32,10 @@
 #include <vector>
 
 namespace reconduit {
+
+// Tiles overlap by this many pixels on each side (of the image they cut).
+inline constexpr int kSiftTileMargin = 112;
+inline constexpr int kMinSiftTilePixels = (4 * kSiftTileMargin) * (4 * kSiftTileMargin);
 
 struct SiftOptions {
   // Features are detected on a copy whose longer side is at most this many pixels (INTER_AREA
@@ -38,6 +56,9 @@ struct SiftOptions {
   double edge_threshold = 10.0;
   // Scale levels per octave. [1, 8]
   int octave_layers = 3;
+  // Working copies with more pixels are described in tiles of at most this many pixels
+  // (margins included; see above). [kMinSiftTilePixels, 2^30]
+  int max_tile_pixels = 2'000'000;
 
   bool Check(std::string* error) const;
 };

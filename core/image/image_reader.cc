@@ -29,12 +29,16 @@ int DecodeReduction(const ImageInfo& info, bool want_pixels) {
   return 1;
 }
 
-int DecodeFlags(int reduction) {
-  const int colour = reduction == 8   ? cv::IMREAD_REDUCED_COLOR_8
-                     : reduction == 4 ? cv::IMREAD_REDUCED_COLOR_4
-                     : reduction == 2 ? cv::IMREAD_REDUCED_COLOR_2
-                                      : cv::IMREAD_COLOR;
-  return colour | cv::IMREAD_IGNORE_ORIENTATION;
+int DecodeFlags(int reduction, bool grey) {
+  const int flags = grey ? (reduction == 8   ? cv::IMREAD_REDUCED_GRAYSCALE_8
+                            : reduction == 4 ? cv::IMREAD_REDUCED_GRAYSCALE_4
+                            : reduction == 2 ? cv::IMREAD_REDUCED_GRAYSCALE_2
+                                             : cv::IMREAD_GRAYSCALE)
+                         : (reduction == 8   ? cv::IMREAD_REDUCED_COLOR_8
+                            : reduction == 4 ? cv::IMREAD_REDUCED_COLOR_4
+                            : reduction == 2 ? cv::IMREAD_REDUCED_COLOR_2
+                                             : cv::IMREAD_COLOR);
+  return flags | cv::IMREAD_IGNORE_ORIENTATION;
 }
 
 // Runs every header check on `path` (InspectImageHeader), then decodes it. The pixels
@@ -63,7 +67,8 @@ ImageRecord LoadImage(const std::filesystem::path& path,
   cv::Mat stored;
   try {
     const cv::Mat buffer(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data());
-    stored = cv::imdecode(buffer, DecodeFlags(reduction));
+    // Without pixels wanted (InspectImage), one grey channel proves the file decodes as well.
+    stored = cv::imdecode(buffer, DecodeFlags(reduction, options.grey || pixels == nullptr));
   } catch (const cv::Exception& e) {
     return refuse(Status::InvalidArgument("the " + std::string(ImageFormatName(info.format)) +
                                           " data could not be decoded (" + e.err + ")"));

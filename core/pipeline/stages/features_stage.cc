@@ -39,6 +39,7 @@ StageResult FeaturesStage::Run(StageContext& context) const {
   reader.min_side = context.options.min_image_side;
   reader.max_pixels = context.options.max_image_pixels;
   reader.read_exif = false;
+  reader.grey = true;
   // Read at the working size: a large JPEG is decoded at reduced scale (image_reader.h), so
   // its full-size pixels never exist; SIFT reports in the original's pixels.
   reader.max_side = sift.max_image_side;
