@@ -595,6 +595,27 @@ TEST_F(WorkerProcessTest, KillDashNineAtElevenMomentsEveryJobFinishesOnce) {
   }
 }
 
+// A job over --memory-budget fails in the stage that went over it, saying so; the worker lives
+// on and runs the next job, which fits.
+TEST_F(WorkerProcessTest, JobOverTheMemoryBudgetFailsAndTheWorkerTakesTheNext) {
+  // Features at full size: one SIFT pass over 1280 x 960 holds about 300 MiB.
+  const std::string big = CreateJob(kLarge, {{"num_threads", 1}, {"max_features", 2048}});
+  // Features on 320 px copies: a few MiB.
+  const std::string small =
+      CreateJob(kSmall, {{"num_threads", 1}, {"max_features", 512}, {"max_image_side", 320}});
+  WorkerProcess worker(
+      layout_.root(), "w-budget",
+      {"--poll", "0.1", "--lease", "5", "--until", "features", "--memory-budget", "200"});
+  ASSERT_TRUE(WaitForState(big, JobState::kFailed, 60s)) << Describe(big) << worker.Log();
+  const Job failed = Get(big);
+  EXPECT_EQ(failed.error_stage, "features");
+  EXPECT_THAT(failed.error, HasSubstr("stage features needed more memory than this worker allows"));
+  EXPECT_THAT(failed.error, HasSubstr("over the budget of 200 MiB"));
+  EXPECT_TRUE(WaitForState(small, JobState::kSucceeded, 60s)) << Describe(small) << worker.Log();
+  EXPECT_FALSE(worker.Wait(0ms).has_value()) << "the worker must live on\n" << worker.Log();
+  EXPECT_THAT(worker.Log(), HasSubstr("memory budget 200 MiB"));
+}
+
 TEST_F(WorkerProcessTest, ConfigFileSettingsUnderTheEnvironmentAndFlags) {
   const fs::path config = dir_.path() / "worker.conf";
   std::ofstream(config) << "# reconduit-worker settings\n"

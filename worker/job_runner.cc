@@ -4,6 +4,7 @@
 #include "core/util/default_log_sink.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
+#include "worker/memory_budget.h"
 
 #include <algorithm>
 #include <condition_variable>
@@ -217,6 +218,14 @@ bool JobRunnerOptions::Check(std::string* error) const {
     *error = "heartbeat_interval must be in [0, lease)";
     return false;
   }
+  if (memory_budget_bytes < 0) {
+    *error = "memory_budget_bytes must be >= 0";
+    return false;
+  }
+  if (memory_check_interval.count() <= 0) {
+    *error = "memory_check_interval must be > 0";
+    return false;
+  }
   if (cancel_check_interval.count() < 0) {
     *error = "cancel_check_interval must be >= 0";
     return false;
@@ -382,6 +391,14 @@ class JobRun {
       Beat();
       sink_.Flush();
     });
+    MemoryWatch memory(options_.memory_budget_bytes, options_.memory_check_interval,
+                       [this](std::int64_t resident) {
+                         over_budget_bytes_ = resident;
+                         LOG_WARNING << "job " << job_.id << ": " << FormatMemory(resident)
+                                     << " resident, over the budget of "
+                                     << FormatMemory(options_.memory_budget_bytes) << "; stopping";
+                         cancel_.RequestCancel();
+                       });
     LOG_INFO << "running job " << job_.id << " (" << job_.image_count << " photos, run "
              << job_.attempts + 1 << " of at most " << job_.max_attempts << ")";
     return RunPipelineAndFinish();
@@ -657,6 +674,16 @@ class JobRun {
       return FinishWith(JobRunOutcome::kCanceled, stage, result.message,
                         [&] { return store_.FinishCanceled(job_.id, options_.worker_id); });
     }
+    if (const std::int64_t resident = over_budget_bytes_.load(); resident > 0) {
+      const std::string message =
+          "stage " + stage +
+          " needed more memory than this worker allows: " + FormatMemory(resident) +
+          " resident, over the budget of " + FormatMemory(options_.memory_budget_bytes) +
+          " (reconduit-worker --memory-budget). Fewer or smaller photos, or lower "
+          "max_image_side / dense_max_image_side options, need less.";
+      LOG_WARNING << "job " << job_.id << " failed in stage " << stage << ": " << message;
+      return Fail(stage, message);
+    }
     if (stop_requested_) {
       LOG_INFO << "job " << job_.id << ": worker stopping; giving the job back";
       return FinishWith(JobRunOutcome::kReleased, stage, result.message,
@@ -726,6 +753,8 @@ class JobRun {
   JobRunReport report_;
   std::atomic<bool> lease_lost_{false};
   std::atomic<bool> cancel_requested_{false};
+  // The resident memory that went over the budget (MemoryWatch); 0 while within it.
+  std::atomic<std::int64_t> over_budget_bytes_{0};
   std::mutex beat_mutex_;
   bool finishing_ = false;  // Guarded by beat_mutex_: no beats once the final write begins.
   ProgressSink sink_;       // After the flags its lease-lost callback sets.

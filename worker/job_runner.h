@@ -73,6 +73,12 @@ struct JobRunnerOptions {
   // the machine than the operator allows. Lets an operator run several workers on one machine
   // without each using every core.
   int default_num_threads = 0;
+  // The most resident memory a job may hold, in bytes (worker/memory_budget.h); 0 = no limit.
+  // Over it, the running stage is canceled and the job fails with a message naming the stage;
+  // the worker takes the next job. reconduit-worker's default: DefaultMemoryBudgetBytes().
+  std::int64_t memory_budget_bytes = 0;
+  // How often the resident memory is sampled against the budget.
+  std::chrono::milliseconds memory_check_interval{100};
   // The stages to run; empty for CreatePipelineStages() (the full pipeline).
   StageListFactory make_stages;
   // Test hook for crash-safety tests (reconduit-worker's RECONDUIT_WORKER_CRASH_AT): called

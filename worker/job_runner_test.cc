@@ -1,6 +1,7 @@
 #include "worker/job_runner.h"
 
 #include "core/io/file_util.h"
+#include "core/util/timer.h"
 #include "worker/worker_test_util.h"
 
 #include <gmock/gmock.h>
@@ -269,6 +270,43 @@ TEST_F(JobRunnerTest, ThrowingStageFailsTheJobNotTheWorker) {
   const std::string next = CreateJob();
   ToyPipeline good;
   JobRunner next_runner(*store_, Options(MakeToyPipeline(good)));
+  EXPECT_EQ(next_runner.Run(Claim(next)).outcome, JobRunOutcome::kSucceeded);
+  EXPECT_EQ(Get(next).state, JobState::kSucceeded);
+}
+
+// A job over the worker's memory budget fails naming the stage and the figures; the worker
+// goes on to the next job, which fits.
+TEST_F(JobRunnerTest, JobOverTheMemoryBudgetFailsAndTheNextJobRuns) {
+  const std::int64_t baseline = CurrentMemoryBytes();
+  ASSERT_GT(baseline, 0) << "no /proc/self/statm";
+  const std::string id = CreateJob();
+  ToyPipeline hog;
+  hog.behaviour = ToyBehaviour::kHogMemory;
+  hog.hog_mib = 2048;
+  // Room for ASan's quarantine of freed blocks (256 MiB) when the next job runs.
+  const std::int64_t allowance = std::int64_t{512} << 20;
+  JobRunnerOptions options = Options(MakeToyPipeline(hog));
+  options.memory_budget_bytes = baseline + allowance;
+  options.memory_check_interval = 20ms;
+  JobRunner runner(*store_, options);
+  const JobRunReport report = runner.Run(Claim(id));
+  EXPECT_EQ(report.outcome, JobRunOutcome::kFailed) << report.message;
+  const Job job = Get(id);
+  EXPECT_EQ(job.state, JobState::kFailed);
+  EXPECT_EQ(job.error_stage, "toy");
+  EXPECT_THAT(job.error, HasSubstr("stage toy needed more memory than this worker allows"));
+  EXPECT_THAT(job.error, HasSubstr("--memory-budget"));
+  EXPECT_LT(CurrentMemoryBytes(), baseline + allowance) << "the stage's memory must be freed";
+
+  // The next job holds less than the budget and succeeds with the same budget.
+  const std::string next = CreateJob();
+  ToyPipeline small;
+  small.behaviour = ToyBehaviour::kHogMemory;
+  small.hog_mib = 64;
+  JobRunnerOptions next_options = Options(MakeToyPipeline(small));
+  next_options.memory_budget_bytes = options.memory_budget_bytes;
+  next_options.memory_check_interval = 20ms;
+  JobRunner next_runner(*store_, next_options);
   EXPECT_EQ(next_runner.Run(Claim(next)).outcome, JobRunOutcome::kSucceeded);
   EXPECT_EQ(Get(next).state, JobState::kSucceeded);
 }

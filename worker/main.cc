@@ -4,6 +4,7 @@
 // (config/config.h).
 #include "core/util/logging.h"
 #include "worker/job_runner.h"
+#include "worker/memory_budget.h"
 
 #include "config/config.h"
 #include "store/data_layout.h"
@@ -80,6 +81,8 @@ struct Flags {
   double lease_seconds = 60.0;
   double poll_seconds = 1.0;
   int threads = 0;
+  // MiB; 0 = DefaultMemoryBudgetBytes(), -1 = none.
+  std::int64_t memory_budget_mib = 0;
   double stop_timeout_seconds = 10.0;
   std::string until;
   bool once = false;
@@ -109,6 +112,12 @@ config::ProgramSettings WorkerProgram(Flags* flags) {
       ("threads", po::value(&flags->threads)->value_name("N")->default_value(flags->threads),
        "Threads per job, the most a job may use: a job's num_threads option may ask for "
        "fewer, never more (env RECONDUIT_WORKER_THREADS; 0 = all cores, at most 256).")
+      ("memory-budget",
+       po::value(&flags->memory_budget_mib)->value_name("MIB")->default_value(flags->memory_budget_mib),
+       "The most resident memory a job may hold, in MiB (env RECONDUIT_WORKER_MEMORY_BUDGET): "
+       "a job that goes over it fails with a message naming the stage, and the worker takes the "
+       "next job. 0 = three quarters of the machine's memory (or of the cgroup's limit); -1 = "
+       "no budget. Give each of several workers on one machine its share.")
       ("until", po::value(&flags->until)->value_name("STAGE"),
        "Run the stages up to this one, then pack the results (env RECONDUIT_UNTIL_STAGE; "
        "default: every stage). For deployments that want only the early stages; jobs still "
@@ -125,6 +134,7 @@ config::ProgramSettings WorkerProgram(Flags* flags) {
                          {"lease", "RECONDUIT_LEASE_SECONDS"},
                          {"poll", "RECONDUIT_POLL_SECONDS"},
                          {"threads", "RECONDUIT_WORKER_THREADS"},
+                         {"memory-budget", "RECONDUIT_WORKER_MEMORY_BUDGET"},
                          {"until", "RECONDUIT_UNTIL_STAGE"},
                          {"stop-timeout", "RECONDUIT_STOP_TIMEOUT_SECONDS"}};
   return program;
@@ -148,6 +158,11 @@ std::string CheckFlags(const config::Settings& settings, const Flags& flags) {
   }
   if (flags.threads < 0 || flags.threads > 256) {
     return settings.Invalid("threads", "must be in [0, 256]");
+  }
+  if (flags.memory_budget_mib < -1 ||
+      (flags.memory_budget_mib > 0 && flags.memory_budget_mib < 64) ||
+      flags.memory_budget_mib > (std::int64_t{1} << 30)) {
+    return settings.Invalid("memory-budget", "must be -1 (none), 0 (automatic) or 64 MiB and up");
   }
   if (settings.values.count("until") != 0) {
     if (const Status known = CheckUntilStage(flags.until); !known.ok()) {
@@ -229,6 +244,9 @@ JobRunnerOptions RunnerOptions(const Flags& flags, const DataLayout& layout) {
   options.worker_id = flags.id;
   options.lease = ToMillis(flags.lease_seconds);
   options.default_num_threads = flags.threads;
+  options.memory_budget_bytes = flags.memory_budget_mib == 0  ? DefaultMemoryBudgetBytes()
+                                : flags.memory_budget_mib < 0 ? 0
+                                                              : flags.memory_budget_mib << 20;
   options.make_stages = StagesUntil(flags.until);
   options.on_moment = CrashAtMoment();
   // A cancel request should be seen within a second, but never more often than a few beats
@@ -334,7 +352,9 @@ int Main(int argc, char** argv) {
 
   LOG_INFO << "reconduit-worker " << flags.id << ": data folder "
            << fs::absolute(layout.root()).string() << ", lease " << flags.lease_seconds << " s"
-           << (flags.until.empty() ? "" : ", stages up to " + flags.until);
+           << (flags.until.empty() ? "" : ", stages up to " + flags.until) << ", memory budget "
+           << (options.memory_budget_bytes > 0 ? FormatMemory(options.memory_budget_bytes)
+                                               : std::string("none"));
   SweepStoppedWorkers(*store);
 
   StopState state;

@@ -19,6 +19,7 @@
 #include <stdexcept>
 #include <stdlib.h>
 #include <thread>
+#include <vector>
 
 namespace reconduit {
 namespace testing_util {
@@ -53,6 +54,19 @@ class ToyStage : public Stage {
       case ToyBehaviour::kSleep:
         std::this_thread::sleep_for(std::chrono::milliseconds(toy_.sleep_ms));
         return StageResult::Success({{"slept_ms", toy_.sleep_ms}});
+      case ToyBehaviour::kHogMemory: {
+        std::vector<std::vector<char>> blocks;
+        for (int mib = 0; mib < toy_.hog_mib; mib += 16) {
+          context.cancel.ThrowIfCanceled();
+          blocks.emplace_back(std::size_t{16} << 20, '\1');  // Touched: resident.
+        }
+        // Long enough for any watch to sample what is held.
+        for (int i = 0; i < 100; ++i) {
+          context.cancel.ThrowIfCanceled();
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+        return StageResult::Success({{"held_mib", toy_.hog_mib}});
+      }
       case ToyBehaviour::kLogFlood:
         for (int i = 0; i < toy_.flood_lines; ++i) LOG_INFO << "toy line " << i;
         return StageResult::Success({{"lines", toy_.flood_lines}});

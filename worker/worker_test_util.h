@@ -58,6 +58,8 @@ enum class ToyBehaviour {
   kWaitForCancel,  // Calls `on_run`, then polls the cancel token for up to 30 s.
   kLogFlood,       // Logs `flood_lines` lines, then succeeds.
   kSleep,          // Calls `on_run`, sleeps `sleep_ms` without looking at the cancel token.
+  kHogMemory,      // Touches `hog_mib` MiB in 16 MiB blocks, polling the cancel token between
+                   // blocks and for a while after, then frees it all and succeeds.
 };
 
 struct ToyPipeline {
@@ -66,6 +68,7 @@ struct ToyPipeline {
   std::function<void()> on_run;
   int flood_lines = 1000;
   int sleep_ms = 2000;
+  int hog_mib = 256;
   std::shared_ptr<ToyStageRuns> runs = std::make_shared<ToyStageRuns>();
 };
 
