@@ -9,11 +9,16 @@ from the start of the first upload to the end of the last, and the uploads' stat
 
   python3 scripts/upload_latency.py --server build/ci/server/reconduit-server --uploads 2
 
-No worker is started: the jobs stay queued. A measurement, not a test: run it on a quiet
-machine and read the figures.
+With --worker (as scripts/start.sh runs the service) a reconduit-worker on the same data folder
+runs the small job (the whole pipeline on 3 photos) and then the uploaded ones while the
+uploads arrive, so the server competes with a busy worker for the two cores. A measurement,
+not a test: run it on a quiet machine and read the figures.
+
+  python3 scripts/upload_latency.py --uploads 8 --worker build/ci/worker/reconduit-worker
 """
 import argparse
 import http.client
+import json
 import os
 import shutil
 import socket
@@ -85,12 +90,15 @@ def main():
     parser.add_argument("--uploads", type=int, default=2)
     parser.add_argument("--photos", type=int, default=1000)
     parser.add_argument("--photos-dir", default=DEFAULT_PHOTOS)
+    parser.add_argument("--worker", default="",
+                        help="a reconduit-worker to run on the same data folder meanwhile")
     parser.add_argument("--server-arg", action="append", default=[],
                         help="extra flag for the server, e.g. --server-arg=--upload-threads=2")
     args = parser.parse_args()
 
     work = tempfile.mkdtemp(prefix="upload_latency_")
     server = None
+    worker = None
     try:
         zip_path = os.path.join(work, "photos.zip")
         build_zip(zip_path, args.photos_dir, args.photos)
@@ -110,6 +118,19 @@ def main():
             capture_output=True, text=True, check=True).stdout
         location = [line.split(":", 1)[1].strip() for line in created.splitlines()
                     if line.lower().startswith("location:")][0]
+        if args.worker:
+            worker_log = open(os.path.join(work, "worker.log"), "w")
+            worker = subprocess.Popen(
+                [args.worker, "--data", os.path.join(work, "data"), "--poll", "0.2"],
+                stdout=worker_log, stderr=subprocess.STDOUT)
+            # The uploads start once the worker is busy with the small job.
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                connection = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+                connection.request("GET", location)
+                if b'"running"' in connection.getresponse().read():
+                    break
+                time.sleep(0.1)
 
         stop = threading.Event()
         results = {"/healthz": ([], []), location: ([], [])}
@@ -128,14 +149,25 @@ def main():
             thread.join()
 
         size_mb = os.path.getsize(zip_path) / 1e6
-        print("%d concurrent uploads of %d photos (%.0f MB each): status and seconds: %s" %
-              (args.uploads, args.photos, size_mb, ", ".join(outcomes)))
+        print("%d concurrent uploads of %d photos (%.0f MB each), %s: status and seconds: %s" %
+              (args.uploads, args.photos, size_mb,
+               "a worker running" if worker is not None else "no worker", ", ".join(outcomes)))
+        print("load average at the end: %.2f %.2f %.2f" % os.getloadavg())
+        if worker is not None:
+            connection = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+            connection.request("GET", location)
+            status = json.loads(connection.getresponse().read())
+            print("the worker's first job at the end: %s, stage %s" %
+                  (status.get("state"), status.get("stage")))
         for path, (samples, failures) in results.items():
             name = "/healthz" if path == "/healthz" else "GET /api/v1/jobs/{id}"
             print("%-22s n=%4d p50 %7.1f ms  p99 %7.1f ms  max %7.1f ms  failures %d" %
                   (name, len(samples), percentile(samples, 50), percentile(samples, 99),
                    max(samples) if samples else float("nan"), len(failures)))
     finally:
+        if worker is not None:
+            worker.terminate()
+            worker.wait(timeout=60)
         if server is not None:
             server.terminate()
             server.wait(timeout=30)
