@@ -9,8 +9,10 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <memory>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 namespace reconduit::server {
 namespace {
@@ -553,6 +555,27 @@ TEST_F(TransportTest, OneAddressCannotTakeEveryConnection) {
   }
   TestClient again(port_);
   EXPECT_EQ(again.Request("GET", "/items/5").status, 200u);
+}
+
+// Issue 12's done-when: 300 slow connections from one address (one header byte each, never
+// finished) leave another address served normally, with the default limits.
+TEST_F(TransportTest, ThreeHundredSlowConnectionsFromOneAddressLeaveOthersServed) {
+  Start(HttpServerOptions());
+  std::vector<std::unique_ptr<TestClient>> slow;
+  for (int i = 0; i < 300; ++i) {
+    slow.push_back(std::make_unique<TestClient>(port_, std::chrono::seconds(10)));
+    if (slow.back()->connected()) slow.back()->Write("G");
+  }
+  for (int k = 0; k < 5; ++k) {
+    TestClient other(port_, std::chrono::seconds(10), "127.0.0.2");
+    ASSERT_TRUE(other.connected());
+    const auto start = std::chrono::steady_clock::now();
+    TestResponse served = other.Request("GET", "/items/" + std::to_string(k));
+    EXPECT_EQ(served.status, 200u) << served.error;
+    EXPECT_EQ(served.body, "item " + std::to_string(k));
+    EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
+  }
+  EXPECT_LE(server_->ConnectionCount(), HttpServerOptions().max_connections_per_address + 1);
 }
 
 // Issue 12: "gzip, chunked" was read as chunked with the gzip coding ignored.
