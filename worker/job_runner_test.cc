@@ -196,6 +196,29 @@ TEST_F(JobRunnerTest, RealStagesSucceedWithResultArchive) {
   EXPECT_THAT(events, Contains("|succeeded"));
 }
 
+// Issue 12's fault injection: a photo deleted under a running job (after ingest checked it).
+// The job fails in the stage that needed it, naming the photo as uploaded; other jobs go on.
+TEST_F(JobRunnerTest, PhotoVanishedUnderARunningJobFailsItNamingThePhoto) {
+  const std::string id = CreateJob();
+  JobRunnerOptions options = Options(StagesUntil("features"));
+  options.on_moment = [&](const std::string& moment) {
+    if (moment == "stage-done:ingest") fs::remove(layout_.InputDir(id) / "0002.jpg");
+  };
+  JobRunner runner(*store_, options);
+  const JobRunReport report = runner.Run(Claim(id));
+  EXPECT_EQ(report.outcome, JobRunOutcome::kFailed) << report.message;
+  const Job job = Get(id);
+  EXPECT_EQ(job.state, JobState::kFailed);
+  EXPECT_EQ(job.error_stage, "features");
+  EXPECT_THAT(job.error, HasSubstr("IMG_0002.JPG"));
+  EXPECT_THAT(job.error, Not(HasSubstr("Check failed"))) << "a message for users";
+  std::printf("the vanished photo's message: %s\n", job.error.c_str());
+
+  const std::string next = CreateJob();
+  JobRunner next_runner(*store_, Options(StagesUntil("features")));
+  EXPECT_EQ(next_runner.Run(Claim(next)).outcome, JobRunOutcome::kSucceeded);
+}
+
 TEST_F(JobRunnerTest, InvalidOptionsFailNamingTheField) {
   const std::string id = CreateJob({{"max_features", 3}});
   JobRunner runner(*store_, Options());

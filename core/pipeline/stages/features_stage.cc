@@ -11,6 +11,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <stdexcept>
 
 namespace reconduit {
 
@@ -60,7 +61,12 @@ StageResult FeaturesStage::Run(StageContext& context) const {
           const IngestedImage& image = *accepted[k];
           ImageInfo info;
           auto pixels = ReadImage(image.path, reader, &info);
-          THROW_CHECK(pixels.ok()) << image.name << ": " << pixels.status().message();
+          if (!pixels.ok()) {
+            // Ingest read it: the file changed or went away under the running job.
+            throw std::runtime_error("the photo " + image.name + " can no longer be read (" +
+                                     pixels.status().message() +
+                                     "); it was readable when the job started");
+          }
           const FeatureSet features =
               ExtractSiftFeatures(*pixels, sift, cv::Size(info.width, info.height));
           const Status written =
