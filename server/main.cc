@@ -15,6 +15,7 @@
 
 #include "config/config.h"
 #include <chrono>
+#include <csignal>
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
@@ -207,6 +208,9 @@ std::optional<int> ParseConfig(int argc, char** argv, Config* config) {
 
 int main(int argc, char** argv) {
   using namespace reconduit::server;  // NOLINT(build/namespaces)
+  // A write over a file size limit (RLIMIT_FSIZE, set by an operator or a container) must fail
+  // with EFBIG, answered like a full disk, not kill the server with SIGXFSZ.
+  std::signal(SIGXFSZ, SIG_IGN);
 
   Config config;
   if (std::optional<int> exit_status = ParseConfig(argc, argv, &config)) return *exit_status;

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <sqlite3.h>
 #include <zip.h>
 
 #include "store/job_store.h"
@@ -127,11 +128,17 @@ class ApiTest : public ::testing::Test {
 
   fs::path data() const { return dir_ / "data"; }
 
-  // Starts a server on the test's data folder with extra flags.
-  void StartServer(const std::vector<std::string>& extra = {}) {
-    server_ = std::make_unique<ServerProcess>(RECONDUIT_SERVER_BINARY);
+  // Starts a server on the test's data folder with extra flags; with `file_size_limit` > 0
+  // under that RLIMIT_FSIZE (prlimit): no file it writes may grow past it, as on a full disk.
+  void StartServer(const std::vector<std::string>& extra = {}, std::int64_t file_size_limit = 0) {
+    server_ = std::make_unique<ServerProcess>(file_size_limit > 0 ? "/usr/bin/prlimit"
+                                                                  : RECONDUIT_SERVER_BINARY);
     std::vector<std::string> args = {"--port",    "0", "--data", data().string(),
                                      "--threads", "2", "--web",  (dir_ / "no-web").string()};
+    if (file_size_limit > 0) {
+      args.insert(args.begin(),
+                  {"--fsize=" + std::to_string(file_size_limit), RECONDUIT_SERVER_BINARY});
+    }
     args.insert(args.end(), extra.begin(), extra.end());
     ASSERT_TRUE(server_->Start(args, dir_ / "stderr.txt")) << server_->error();
     port_ = server_->port();
@@ -469,7 +476,7 @@ TEST_F(ApiTest, AFullQueueAnswers503WithRetryAfter) {
   StartServer({"--max-queued-jobs", "1", "--retry-after", "7"});
   ASSERT_FALSE(UploadJob().empty());
   const TestResponse full = Upload({{"images", "a.jpg", SyntheticJpeg()}});
-  EXPECT_EQ(full.status, 503u) << full.body;
+  EXPECT_EQ(full.status, 503u) << full.body << full.error << "\n" << server_->Stderr();
   EXPECT_EQ(full.Header("Retry-After"), "7");
   EXPECT_NE(ErrorMessage(full).find("queue is full"), std::string::npos) << full.body;
   EXPECT_EQ(Json(Fetch(port_, "GET", "/api/v1/jobs"))["total"], 1);
@@ -623,6 +630,72 @@ TEST_F(ApiTest, KillDuringUploadLeavesNoJobAndTheTemporaryFilesGo) {
   EXPECT_TRUE(fs::is_empty(data() / "jobs"));
   // And the server works normally afterwards.
   EXPECT_FALSE(UploadJob().empty());
+}
+
+// Issue 12's fault injection: the disk fills during an upload (here: RLIMIT_FSIZE, so a file
+// cannot grow past 8 MiB; the database and its log stay below it). The upload gets 503 with
+// Retry-After, leaves nothing behind, the job accepted before is untouched, and the server
+// goes on serving and accepting uploads that fit.
+TEST_F(ApiTest, DiskFullDuringAnUploadAnswers503AndLosesNothing) {
+  if (!fs::exists("/usr/bin/prlimit")) GTEST_SKIP() << "no /usr/bin/prlimit (util-linux)";
+  StartServer({"--retry-after", "9"}, /*file_size_limit=*/std::int64_t{8} << 20);
+  const std::string before = UploadJob();
+  ASSERT_FALSE(before.empty());
+  const Job kept = *Store().GetJob(before);
+
+  // A JPEG's first bytes (the server sniffs them), then more than the limit: never stored whole.
+  std::string big = SyntheticJpeg(320, 240, 3);
+  std::mt19937 random(3);
+  while (big.size() < (std::size_t{9} << 20)) big.push_back(static_cast<char>(random()));
+  const TestResponse full = Upload({{"images", "big.jpg", big}});
+  EXPECT_EQ(full.status, 503u) << full.body << full.error << "\n" << server_->Stderr();
+  EXPECT_EQ(full.Header("Retry-After"), "9");
+  EXPECT_NE(ErrorMessage(full).find("out of disk space"), std::string::npos) << full.body;
+  for (int i = 0; i < 100 && !TempEntries().empty(); ++i) std::this_thread::sleep_for(10ms);
+  EXPECT_TRUE(TempEntries().empty());
+
+  EXPECT_EQ(Json(Fetch(port_, "GET", "/api/v1/jobs"))["total"], 1);
+  const Job after = *Store().GetJob(before);
+  EXPECT_EQ(after.state, kept.state);
+  EXPECT_EQ(after.image_count, kept.image_count);
+  const std::vector<JobImageRecord> images = *Store().ListImages(before);
+  ASSERT_EQ(images.size(), 2u);
+  for (const JobImageRecord& image : images) {
+    EXPECT_TRUE(fs::exists(data() / "jobs" / before / "input" / image.stored_name));
+  }
+  EXPECT_EQ(Fetch(port_, "GET", "/healthz").status, 200u);
+  EXPECT_FALSE(UploadJob().empty()) << server_->Stderr();
+}
+
+// Issue 12's fault injection: another process holds the database's write lock. Uploads are
+// refused with a clear retryable answer once the store's wait runs out; reads go on (WAL);
+// when the lock goes, uploads are accepted again and nothing accepted before is lost.
+TEST_F(ApiTest, DatabaseLockedByAnotherProcessRefusesUploadsCleanly) {
+  StartServer();
+  const std::string before = UploadJob();
+  ASSERT_FALSE(before.empty());
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((data() / "reconduit.db").string().c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr), SQLITE_OK);
+  const auto start = std::chrono::steady_clock::now();
+  const TestResponse locked = Upload({{"images", "a.jpg", SyntheticJpeg(320, 240, 7)},
+                                      {"images", "b.jpg", SyntheticJpeg(320, 240, 8)}});
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  std::printf("upload while the database is locked: %u in %.1f s: %s\n", locked.status, seconds,
+              locked.body.c_str());
+  EXPECT_EQ(locked.status, 503u) << locked.body;
+  EXPECT_FALSE(locked.Header("Retry-After").empty());
+  EXPECT_NE(ErrorMessage(locked).find("busy"), std::string::npos) << locked.body;
+  const TestResponse status = Fetch(port_, "GET", "/api/v1/jobs/" + before);
+  EXPECT_EQ(status.status, 200u) << status.body;
+  EXPECT_EQ(Fetch(port_, "GET", "/healthz").status, 200u);
+  ASSERT_EQ(sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+
+  EXPECT_TRUE(TempEntries().empty());
+  EXPECT_FALSE(UploadJob().empty()) << server_->Stderr();
+  EXPECT_EQ(Json(Fetch(port_, "GET", "/api/v1/jobs"))["total"], 2);
 }
 
 TEST_F(ApiTest, FiftyConcurrentUploadsGetCreatedOrRetryLaterNeverAServerError) {

@@ -371,6 +371,9 @@ int Main(int argc, char** argv) {
 }  // namespace reconduit
 
 int main(int argc, char** argv) {
+  // A write over a file size limit (RLIMIT_FSIZE) must fail the stage with EFBIG, like a full
+  // disk, not kill the worker with SIGXFSZ.
+  std::signal(SIGXFSZ, SIG_IGN);
   try {
     return reconduit::Main(argc, argv);
   } catch (const std::exception& e) {

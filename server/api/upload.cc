@@ -55,10 +55,10 @@ Response Refuse(HttpStatus status, std::string_view message, std::string_view co
   return ErrorResponse(status, message, code);
 }
 
-// An I/O failure while storing an upload: a full disk is the server's capacity (503, retry),
-// anything else is internal (logged, 500).
+// An I/O failure while storing an upload: a full disk, a quota or a file size limit is the
+// server's capacity (503, retry), anything else is internal (logged, 500).
 Response StorageFailure(const ApiServices& services, std::string_view what, int error) {
-  if (error == ENOSPC || error == EDQUOT) {
+  if (error == ENOSPC || error == EDQUOT || error == EFBIG) {
     LOG_WARNING << "upload refused: " << what << ": " << std::strerror(error);
     return RetryLaterResponse(HttpStatus::service_unavailable,
                               "the server is out of disk space; retry later",
