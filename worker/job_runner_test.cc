@@ -116,6 +116,19 @@ class JobRunnerTest : public ::testing::Test {
     return messages;
   }
 
+  // Runs the job `id` (claimed here) with `options`; expects it failed in `stage`.
+  Job RunToFailure(const std::string& id,
+                   const JobRunnerOptions& options,
+                   const std::string& stage) {
+    JobRunner runner(*store_, options);
+    const JobRunReport report = runner.Run(Claim(id));
+    EXPECT_EQ(report.outcome, JobRunOutcome::kFailed) << report.message;
+    Job job = Get(id);
+    EXPECT_EQ(job.state, JobState::kFailed);
+    EXPECT_EQ(job.error_stage, stage);
+    return job;
+  }
+
   JobRunnerOptions Options(StageListFactory stages = {}) {
     JobRunnerOptions options;
     options.data_dir = layout_.root();
@@ -204,12 +217,7 @@ TEST_F(JobRunnerTest, PhotoVanishedUnderARunningJobFailsItNamingThePhoto) {
   options.on_moment = [&](const std::string& moment) {
     if (moment == "stage-done:ingest") fs::remove(layout_.InputDir(id) / "0002.jpg");
   };
-  JobRunner runner(*store_, options);
-  const JobRunReport report = runner.Run(Claim(id));
-  EXPECT_EQ(report.outcome, JobRunOutcome::kFailed) << report.message;
-  const Job job = Get(id);
-  EXPECT_EQ(job.state, JobState::kFailed);
-  EXPECT_EQ(job.error_stage, "features");
+  const Job job = RunToFailure(id, options, "features");
   EXPECT_THAT(job.error, HasSubstr("IMG_0002.JPG"));
   EXPECT_THAT(job.error, Not(HasSubstr("Check failed"))) << "a message for users";
   std::printf("the vanished photo's message: %s\n", job.error.c_str());
@@ -311,12 +319,7 @@ TEST_F(JobRunnerTest, JobOverTheMemoryBudgetFailsAndTheNextJobRuns) {
   JobRunnerOptions options = Options(MakeToyPipeline(hog));
   options.memory_budget_bytes = baseline + allowance;
   options.memory_check_interval = 20ms;
-  JobRunner runner(*store_, options);
-  const JobRunReport report = runner.Run(Claim(id));
-  EXPECT_EQ(report.outcome, JobRunOutcome::kFailed) << report.message;
-  const Job job = Get(id);
-  EXPECT_EQ(job.state, JobState::kFailed);
-  EXPECT_EQ(job.error_stage, "toy");
+  const Job job = RunToFailure(id, options, "toy");
   EXPECT_THAT(job.error, HasSubstr("stage toy needed more memory than this worker allows"));
   EXPECT_THAT(job.error, HasSubstr("--memory-budget"));
   EXPECT_LT(CurrentMemoryBytes(), baseline + allowance) << "the stage's memory must be freed";
