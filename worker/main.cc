@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <functional>
 #include <iostream>
+#include <malloc.h>
 #include <mutex>
 #include <optional>
 #include <poll.h>
@@ -323,6 +324,9 @@ void ClaimLoop(const Flags& flags,
       LOG_INFO << "job " << job.id << ": " << JobRunOutcomeName(report.outcome) << " in "
                << report.seconds << " s"
                << (report.message.empty() ? "" : " (" + report.stage + ": " + report.message + ")");
+      // Give the job's freed heap back to the system: what glibc keeps would count against the
+      // next job's memory budget.
+      malloc_trim(0);
       if (flags.once) break;
       continue;
     } else {
