@@ -575,7 +575,6 @@ TEST_F(TransportTest, ThreeHundredSlowConnectionsFromOneAddressLeaveOthersServed
     EXPECT_EQ(served.body, "item " + std::to_string(k));
     EXPECT_LT(std::chrono::steady_clock::now() - start, 1s);
   }
-  EXPECT_LE(server_->ConnectionCount(), HttpServerOptions().max_connections_per_address + 1);
 }
 
 // Issue 12: "gzip, chunked" was read as chunked with the gzip coding ignored.
