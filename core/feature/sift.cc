@@ -42,8 +42,10 @@ struct Piece {
 };
 
 void DetectPiece(const cv::Mat& image, const Piece& piece, cv::SIFT& sift, Candidates* out) {
-  // A copy, so that the pixels around the region do not take part (as at the image's border).
-  const cv::Mat region = image(piece.region).clone();
+  // A tile is copied, so that the pixels around it do not take part (as at the image's
+  // border); the whole image is used as it is.
+  const bool whole = piece.region == cv::Rect(0, 0, image.cols, image.rows);
+  const cv::Mat region = whole ? image : image(piece.region).clone();
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
   // One pass: detect() followed by compute() would build the Gaussian pyramid twice, which
