@@ -2,9 +2,11 @@
 // exactly once and no "database is locked" error reaches a caller.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include "store/job_store.h"
 #include "store/store_test_util.h"
+#include <chrono>
 #include <fstream>
 #include <map>
 #include <signal.h>
@@ -257,6 +259,31 @@ TEST(JobStoreConcurrency, AJobOfAKilledWorkerProcessIsResumedByAnother) {
   EXPECT_EQ((*job)->attempts, 1);
   EXPECT_THAT((*job)->finished_stages, ::testing::ElementsAre("ingest"));
   EXPECT_TRUE(store->FinishSucceeded(id, "rescuer", {.result_sha256 = kSha}).ok());
+}
+
+// Another process holds the database's write lock (here: another connection in BEGIN
+// EXCLUSIVE). A write gives up with kResourceExhausted once the store's busy timeout has passed
+// since the call began, however many times it retries within it; reads go on (WAL).
+TEST(JobStoreConcurrency, AWriteBehindALockGivesUpAfterOneBusyTimeout) {
+  TempDir dir;
+  const std::string path = dir.File("jobs.db");
+  std::unique_ptr<JobStore> store = OpenOrDie(path, {.busy_timeout_ms = 400});
+  const std::string before = CreateJobs(*store, 1)[0];
+  sqlite3* other = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &other), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(other, "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr), SQLITE_OK);
+  const auto start = std::chrono::steady_clock::now();
+  const Result<Job> blocked = store->CreateJob(MakeNewJob(1));
+  const auto waited = std::chrono::steady_clock::now() - start;
+  EXPECT_EQ(blocked.status().code(), StatusCode::kResourceExhausted) << blocked.status();
+  EXPECT_THAT(blocked.status().message(), ::testing::HasSubstr("busy"));
+  EXPECT_GE(waited, 380ms);
+  EXPECT_LT(waited, 700ms) << "each retry waited its own busy timeout";
+  EXPECT_TRUE(store->GetJob(before).ok());
+  ASSERT_EQ(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(other);
+  // The lock gone, the next write goes through.
+  EXPECT_TRUE(store->CreateJob(MakeNewJob(1)).ok());
 }
 
 }  // namespace

@@ -9,9 +9,11 @@
 //   canceling and sweeping are therefore serialised across all threads and processes, which is
 //   what makes "each job is claimed exactly once" hold. Single-statement writes run in
 //   autocommit mode, which also takes the write lock before reading.
-// - A call that still meets SQLITE_BUSY (busy timeout exhausted, or one of the rare cases where
-//   SQLite does not consult the busy handler) is retried a few times from the start of its
-//   transaction, then reported as kResourceExhausted.
+// - A call that meets SQLITE_BUSY without having waited (one of the rare cases where SQLite
+//   does not consult the busy handler) is retried a few times from the start of its transaction.
+//   All tries of one call share one busy_timeout: a call gives up, as kResourceExhausted, once
+//   busy_timeout has passed since it began (not once per try: an upload behind a lock held by
+//   another process is answered 503 after 5 s, not 20).
 #include "core/util/logging.h"
 
 #include "store/job_store.h"
@@ -34,7 +36,7 @@ namespace {
 
 using json = nlohmann::json;
 
-// Retries of a whole call after SQLITE_BUSY, on top of SQLite's own busy_timeout wait.
+// Retries of a whole call after SQLITE_BUSY, within the call's busy_timeout.
 constexpr int kMaxBusyRetries = 3;
 // Idle connections kept open per store; more are closed when returned.
 constexpr std::size_t kMaxIdleConnections = 16;
@@ -340,8 +342,7 @@ void EnableWal(SqliteConnection& db, const SqliteJobStoreOptions& options) {
       if (pragma.Step()) mode = pragma.Text(0);
       break;
     } catch (const SqliteError& e) {
-      if (e.status().code() != StatusCode::kResourceExhausted ||
-          std::chrono::steady_clock::now() > deadline) {
+      if (!e.busy() || std::chrono::steady_clock::now() > deadline) {
         throw;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
@@ -465,17 +466,29 @@ void SqliteJobStore::Release(std::unique_ptr<SqliteConnection> connection) noexc
 template <typename Fn>
 std::invoke_result_t<Fn&, SqliteConnection&> SqliteJobStore::Run(std::string_view what, Fn&& fn) {
   using R = std::invoke_result_t<Fn&, SqliteConnection&>;
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(options_.busy_timeout_ms);
   for (int attempt = 0;; ++attempt) {
     Status error;
+    bool busy = false;
     try {
       Borrowed connection(*this);
+      // SQLite's wait for a lock gets what is left of the call's budget (the whole of it on
+      // the first try).
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      ThrowIfSqliteError(
+          sqlite3_busy_timeout(connection.get().get(),
+                               static_cast<int>(std::max<std::int64_t>(1, left.count()))),
+          connection.get().get(), "set busy timeout");
       return fn(connection.get());
     } catch (const SqliteError& e) {
       error = e.status();
+      busy = e.busy();
     } catch (const std::exception& e) {
       error = Status::Internal(e.what());
     }
-    if (error.code() == StatusCode::kResourceExhausted && attempt < kMaxBusyRetries) {
+    if (busy && attempt < kMaxBusyRetries && std::chrono::steady_clock::now() < deadline) {
       LOG_WARNING << "job store: " << what << ": " << error.message() << "; retrying";
       std::this_thread::sleep_for(std::chrono::milliseconds(20 << attempt));
       continue;
@@ -1035,6 +1048,14 @@ Result<std::unique_ptr<JobStore>> OpenSqliteJobStore(const std::string& path,
       return Status(s.code(), context + ": " + s.message());
     }
     EnableWal(db, options);
+    // SQLite opens a file it cannot write read-only without saying so; every change would then
+    // fail (kResourceExhausted, "read-only"). Said once here, so an operator sees it at start.
+    if (sqlite3_db_readonly(db.get(), "main") == 1) {
+      LOG_WARNING << "the job database '" << path
+                  << "' is read-only: jobs can be read, but uploads and every other change are "
+                     "refused until it is writable (check the file's permissions and its "
+                     "filesystem)";
+    }
     return std::unique_ptr<JobStore>(
         std::make_unique<SqliteJobStore>(path, options, std::move(db)));
   } catch (const SqliteError& e) {

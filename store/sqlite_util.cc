@@ -15,6 +15,13 @@ Status SqliteStatus(int rc, sqlite3* db, std::string_view context) {
     case SQLITE_BUSY:
     case SQLITE_LOCKED:
       return Status::ResourceExhausted(message + " (database is busy; retry later)");
+    case SQLITE_READONLY:
+      return Status::ResourceExhausted(
+          message +
+          " (the job database is read-only: check the file's permissions and its filesystem; "
+          "changes are refused until it is writable)");
+    case SQLITE_FULL:
+      return Status::ResourceExhausted(message + " (the disk holding the job database is full)");
     case SQLITE_CONSTRAINT:
       return Status::InvalidArgument(message);
     case SQLITE_NOTADB:
@@ -29,7 +36,7 @@ bool IsSqliteBusy(int rc) { return (rc & 0xff) == SQLITE_BUSY || (rc & 0xff) == 
 
 void ThrowIfSqliteError(int rc, sqlite3* db, std::string_view context) {
   if (rc == SQLITE_OK || rc == SQLITE_ROW || rc == SQLITE_DONE) return;
-  throw SqliteError(SqliteStatus(rc, db, context));
+  throw SqliteError(SqliteStatus(rc, db, context), IsSqliteBusy(rc));
 }
 
 // ------------------------------------------------------------------------------------------------

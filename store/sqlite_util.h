@@ -29,19 +29,25 @@ namespace reconduit {
 // An SQLite failure as an exception; status() says what it means for a caller.
 class SqliteError : public std::runtime_error {
  public:
-  explicit SqliteError(Status status)
-      : std::runtime_error(status.ToString()), status_(std::move(status)) {}
+  // `busy`: the failure was SQLITE_BUSY / SQLITE_LOCKED (IsSqliteBusy), which a retry may cure.
+  explicit SqliteError(Status status, bool busy = false)
+      : std::runtime_error(status.ToString()), status_(std::move(status)), busy_(busy) {}
   const Status& status() const { return status_; }
+  bool busy() const { return busy_; }
 
  private:
   Status status_;
+  bool busy_;
 };
 
 // Maps an SQLite result code to a Status:
 //   SQLITE_BUSY / SQLITE_LOCKED            -> kResourceExhausted ("database is busy"; retry later)
 //   SQLITE_CONSTRAINT                      -> kInvalidArgument (a CHECK, UNIQUE or FK violation)
 //   SQLITE_NOTADB / SQLITE_CORRUPT         -> kInternal, saying the file is not a usable database
-//   SQLITE_CANTOPEN / SQLITE_READONLY ...  -> kInternal with SQLite's message
+//   SQLITE_READONLY / SQLITE_FULL          -> kResourceExhausted, saying the database file is
+//                                             read-only or its disk full (a server answers 503
+//                                             with Retry-After; nothing to retry within a call)
+//   SQLITE_CANTOPEN ...                    -> kInternal with SQLite's message
 // @param rc       an extended or primary SQLite result code (not SQLITE_OK).
 // @param db       the connection for sqlite3_errmsg, or nullptr.
 // @param context  what was being done, e.g. "claim a job"; prefixed to the message.

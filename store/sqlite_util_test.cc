@@ -110,6 +110,30 @@ TEST(SqliteStatus, MapsCodes) {
   EXPECT_EQ(SqliteStatus(SQLITE_IOERR, nullptr, "ctx").message().substr(0, 5), "ctx: ");
   EXPECT_TRUE(IsSqliteBusy(SQLITE_LOCKED_SHAREDCACHE));
   EXPECT_FALSE(IsSqliteBusy(SQLITE_CORRUPT));
+  // A read-only file or a full disk: a 503 for a client, said plainly, and nothing to retry.
+  const Status read_only = SqliteStatus(SQLITE_READONLY_DBMOVED, nullptr, "create job");
+  EXPECT_EQ(read_only.code(), StatusCode::kResourceExhausted);
+  EXPECT_NE(read_only.message().find("the job database is read-only"), std::string::npos);
+  EXPECT_FALSE(IsSqliteBusy(SQLITE_READONLY));
+  const Status full = SqliteStatus(SQLITE_FULL, nullptr, "create job");
+  EXPECT_EQ(full.code(), StatusCode::kResourceExhausted);
+  EXPECT_NE(full.message().find("the disk holding the job database is full"), std::string::npos);
+}
+
+TEST(SqliteError, TellsABusyFailureFromOthers) {
+  try {
+    ThrowIfSqliteError(SQLITE_BUSY, nullptr, "x");
+    ADD_FAILURE() << "no throw";
+  } catch (const SqliteError& e) {
+    EXPECT_TRUE(e.busy());
+  }
+  try {
+    ThrowIfSqliteError(SQLITE_READONLY, nullptr, "x");
+    ADD_FAILURE() << "no throw";
+  } catch (const SqliteError& e) {
+    EXPECT_FALSE(e.busy());
+    EXPECT_EQ(e.status().code(), StatusCode::kResourceExhausted);
+  }
 }
 
 }  // namespace
