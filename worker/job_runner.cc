@@ -7,8 +7,10 @@
 #include "worker/memory_budget.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <memory>
 #include <optional>
@@ -90,6 +92,21 @@ auto RetryStoreWrite(Fn&& fn) {
     result = fn();
   }
   return result;
+}
+
+// A stage's failure message said in the words an operator acts on when the cause was a full
+// disk, whatever wrote the file: core/io's writes begin "out of disk space", libzip, OpenCV and
+// streams name the system's error. Other messages are returned unchanged.
+std::string ExplainDiskFull(const std::string& message) {
+  const bool full = message.find("out of disk space") != std::string::npos ||
+                    message.find(std::strerror(ENOSPC)) != std::string::npos ||
+                    message.find(std::strerror(EDQUOT)) != std::string::npos;
+  if (!full) return message;
+  std::string explained =
+      message.starts_with("out of disk space") ? message : "out of disk space: " + message;
+  return explained +
+         ". Free space in the worker's data folder, then restart the job (POST "
+         "/api/v1/jobs/{id}/restart): the stages it finished are kept.";
 }
 
 // The last path component of an uploaded name: display names are never paths.
@@ -692,8 +709,9 @@ class JobRun {
     if (result.status == StageStatus::kCanceled) {
       return Fail(stage, "stage " + stage + " stopped without a cancel request: " + result.message);
     }
-    LOG_WARNING << "job " << job_.id << " failed in stage " << stage << ": " << result.message;
-    return Fail(stage, result.message.empty() ? "failed" : result.message);
+    const std::string message = ExplainDiskFull(result.message);
+    LOG_WARNING << "job " << job_.id << " failed in stage " << stage << ": " << message;
+    return Fail(stage, message.empty() ? "failed" : message);
   }
 
   JobRunReport Fail(const std::string& stage, const std::string& message) {

@@ -18,6 +18,17 @@ std::string Errno(const std::string& what, const std::filesystem::path& path) {
   return what + " '" + path.string() + "': " + std::strerror(errno);
 }
 
+// The Status for a failed call on `path` with errno set: a full disk (or quota, or file size
+// limit) is kResourceExhausted and says so first, since it is what an operator must act on;
+// anything else is kInternal.
+Status IoError(const std::string& what, const std::filesystem::path& path) {
+  const int error = errno;
+  if (error == ENOSPC || error == EDQUOT || error == EFBIG) {
+    return Status::ResourceExhausted("out of disk space: " + Errno(what, path));
+  }
+  return Status::Internal(Errno(what, path));
+}
+
 std::string ToHex(const unsigned char* data, unsigned int size) {
   static constexpr char kDigits[] = "0123456789abcdef";
   std::string hex(2 * size, '0');
@@ -54,7 +65,7 @@ Status SyncPath(const std::filesystem::path& path) {
   if (fd < 0) return Status::Internal(Errno("cannot open", path));
   const int rc = ::fsync(fd);
   ::close(fd);
-  if (rc != 0) return Status::Internal(Errno("cannot fsync", path));
+  if (rc != 0) return IoError("cannot fsync", path);
   return Status::Ok();
 }
 
@@ -72,23 +83,25 @@ Status WriteFileAtomically(const std::filesystem::path& path, std::string_view c
       path.string() + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(random());
   {
     const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) return Status::Internal(Errno("cannot create", temp));
+    if (fd < 0) return IoError("cannot create a temporary file for", path);
     std::size_t written = 0;
     while (written < contents.size()) {
       const ssize_t n = ::write(fd, contents.data() + written, contents.size() - written);
       if (n < 0) {
         if (errno == EINTR) continue;
-        const Status status = Status::Internal(Errno("cannot write", temp));
+        const Status status = IoError("cannot write", path);
         ::close(fd);
         ::unlink(temp.c_str());
         return status;
       }
       written += static_cast<std::size_t>(n);
     }
-    if (::fsync(fd) != 0 || ::close(fd) != 0) {
-      const Status status = Status::Internal(Errno("cannot flush", temp));
+    // The descriptor is closed whether or not fsync worked; either failing fails the write.
+    Status flushed = ::fsync(fd) == 0 ? Status::Ok() : IoError("cannot flush", path);
+    if (::close(fd) != 0 && flushed.ok()) flushed = IoError("cannot flush", path);
+    if (!flushed.ok()) {
       ::unlink(temp.c_str());
-      return status;
+      return flushed;
     }
   }
   if (::rename(temp.c_str(), path.c_str()) != 0) {

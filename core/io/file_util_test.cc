@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <sys/resource.h>
 
 namespace reconduit {
 namespace {
@@ -45,6 +48,33 @@ TEST_F(FileUtilTest, AtomicWriteIntoMissingFolderFails) {
   const Status status = WriteFileAtomically(dir_ / "missing" / "x.txt", "x");
   EXPECT_EQ(status.code(), StatusCode::kInternal);
   EXPECT_NE(status.message().find("cannot create"), std::string::npos) << status;
+}
+
+// A full disk, as RLIMIT_FSIZE makes it (write fails with EFBIG once SIGXFSZ is ignored): the
+// write fails as kResourceExhausted saying "out of disk space" and naming the file it was for,
+// and the earlier version of the file stays, with no temporary file left.
+TEST_F(FileUtilTest, AtomicWriteOnAFullDiskSaysSoAndKeepsTheOldFile) {
+  const fs::path path = dir_ / "cameras.json";
+  ASSERT_TRUE(WriteFileAtomically(path, "old").ok());
+  rlimit old_limit{};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  rlimit small = old_limit;
+  small.rlim_cur = 4096;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+  const Status status = WriteFileAtomically(path, std::string(100000, 'x'));
+  ::setrlimit(RLIMIT_FSIZE, &old_limit);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(status.code(), StatusCode::kResourceExhausted) << status;
+  EXPECT_EQ(status.message().rfind("out of disk space: cannot write '" + path.string() + "'", 0),
+            0u)
+      << status;
+  const Result<std::string> contents = ReadFile(path);
+  ASSERT_TRUE(contents.ok());
+  EXPECT_EQ(*contents, "old");
+  int files = 0;
+  for ([[maybe_unused]] const auto& entry : fs::directory_iterator(dir_)) ++files;
+  EXPECT_EQ(files, 1) << "no temporary file is left behind";
 }
 
 TEST_F(FileUtilTest, Sha256OfFileMatchesBuffer) {
