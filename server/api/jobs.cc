@@ -155,18 +155,18 @@ void AddJobRoutes(Router* router, ApiServices* services) {
               WithJobId(services, [](ApiServices* s, RequestContext& c, std::string_view id) {
                 return ListEvents(s, c, id);
               }));
-  router->Add(HttpVerb::post, "/api/v1/jobs/{id}/cancel",
-              WithJobId(services, [](ApiServices* s, RequestContext&, std::string_view id) {
-                return CancelJob(s, id);
-              }));
-  router->Add(HttpVerb::post, "/api/v1/jobs/{id}/restart",
-              WithJobId(services, [](ApiServices* s, RequestContext&, std::string_view id) {
-                return RestartJob(s, id);
-              }));
-  router->Add(HttpVerb::delete_, "/api/v1/jobs/{id}",
-              WithJobId(services, [](ApiServices* s, RequestContext&, std::string_view id) {
-                return DeleteJob(s, id);
-              }));
+  router->AddBlocking(HttpVerb::post, "/api/v1/jobs/{id}/cancel",
+                      WithJobId(services, [](ApiServices* s, RequestContext&, std::string_view id) {
+                        return CancelJob(s, id);
+                      }));
+  router->AddBlocking(HttpVerb::post, "/api/v1/jobs/{id}/restart",
+                      WithJobId(services, [](ApiServices* s, RequestContext&, std::string_view id) {
+                        return RestartJob(s, id);
+                      }));
+  router->AddBlocking(HttpVerb::delete_, "/api/v1/jobs/{id}",
+                      WithJobId(services, [](ApiServices* s, RequestContext&, std::string_view id) {
+                        return DeleteJob(s, id);
+                      }));
 }
 
 }  // namespace reconduit::server

@@ -110,6 +110,16 @@ void Router::Add(HttpVerb verb, std::string_view pattern, Handler handler) {
   AddRoute(std::move(route));
 }
 
+void Router::AddBlocking(HttpVerb verb, std::string_view pattern, Handler handler) {
+  THROW_CHECK(handler != nullptr) << "null handler for " << pattern;
+  auto route = std::make_unique<Route>();
+  route->verb = verb;
+  route->pattern = std::string(pattern);
+  route->handler = std::move(handler);
+  route->blocking = true;
+  AddRoute(std::move(route));
+}
+
 void Router::AddStreaming(HttpVerb verb, std::string_view pattern, StreamingHandler handler) {
   THROW_CHECK(handler != nullptr) << "null streaming handler for " << pattern;
   auto route = std::make_unique<Route>();

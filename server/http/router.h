@@ -26,9 +26,12 @@
 //     receives the body in chunks as they arrive (bounded by max_upload_bytes). Uploads use this
 //     so a photo set is never held in memory.
 //
-// Handlers run on an I/O thread: they must not block for long (no reconstruction work; short
-// SQLite transactions and file writes are fine). Exceptions are caught by the transport and
-// answered with a 500 JSON error; they never take the server down.
+// Handlers added with Add run on an I/O thread: they must not block for long (reads of the job
+// store, which never wait for a lock in WAL mode, small answers). Handlers added with
+// AddBlocking run on the transport's blocking pool, like streaming handlers and sinks: those
+// that write the store (which can wait up to its busy timeout for another process's lock) or
+// remove folders, so that no such wait holds an I/O thread. Exceptions are caught by the
+// transport and answered with a 500 JSON error; they never take the server down.
 //
 // Thread-safety: build the router completely before HttpServer starts; Match() is const and may
 // then be called from any number of threads.
@@ -77,6 +80,8 @@ struct Route {
   // Exactly one of the two is set.
   Handler handler;
   StreamingHandler streaming_handler;
+  // For `handler`: run it on the blocking pool (AddBlocking), not on an I/O thread.
+  bool blocking = false;
 
   // The pattern split at '/'; parameters are stored as "{name}".
   std::vector<std::string> segments;
@@ -103,6 +108,9 @@ class Router {
   // unterminated "{}" parameter, a parameter mixed with text in one segment, duplicate parameter
   // names) or a duplicate {verb, pattern}: these are programming errors found at start-up.
   void Add(HttpVerb verb, std::string_view pattern, Handler handler);
+  // As Add, for a handler that may block (store writes, folder removal): the transport runs
+  // it on its blocking pool.
+  void AddBlocking(HttpVerb verb, std::string_view pattern, Handler handler);
   void AddStreaming(HttpVerb verb, std::string_view pattern, StreamingHandler handler);
 
   // Answers GET and HEAD requests whose path matches no pattern.

@@ -184,6 +184,7 @@ class HttpServer::Impl : public std::enable_shared_from_this<HttpServer::Impl> {
   struct Dispatch {
     const Handler* handler = nullptr;
     const StreamingHandler* streaming_handler = nullptr;
+    bool blocking = false;  // `handler` runs on the blocking pool.
     std::uint64_t body_limit = 0;
   };
 
@@ -576,6 +577,7 @@ std::optional<Response> HttpServer::Impl::Admit(RequestContext& context, Dispatc
         dispatch->streaming_handler = &match.route->streaming_handler;
       } else {
         dispatch->handler = &match.route->handler;
+        dispatch->blocking = match.route->blocking;
       }
       break;
   }
@@ -796,6 +798,9 @@ net::awaitable<HttpServer::Impl::Outcome> HttpServer::Impl::HandleRequest(
     auto complete = [&] { return Guarded(context, [&] { return sink->OnComplete(context); }); };
     result = co_await OnBlockingPool(complete);
     co_await DropSink(context, sink);
+  } else if (dispatch.blocking) {
+    auto handle = [&] { return Guarded(context, [&] { return (*dispatch.handler)(context); }); };
+    result = co_await OnBlockingPool(handle);
   } else {
     result = Guarded(context, [&] { return (*dispatch.handler)(context); });
   }

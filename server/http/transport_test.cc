@@ -139,6 +139,10 @@ class TransportTest : public ::testing::Test {
       }
       return std::make_unique<CountingSink>(*boundary, &aborts_);
     });
+    router.AddBlocking(HttpVerb::post, "/held", [this](RequestContext&) {
+      gate_.Pass();
+      return Response::Text("released");
+    });
     router.AddStreaming(HttpVerb::post, "/gated", [this](RequestContext& context) -> StreamStart {
       return std::make_unique<GatedSink>(&gate_, context.Query("hold") == "data");
     });
@@ -517,6 +521,25 @@ TEST_F(TransportTest, HealthzAnswersWhileAnUploadIsStoringABodyPiece) {
   io_threads_ = 1;
   Start();
   ExpectHealthzWhileGated(port_, gate_, "/gated?hold=data");
+}
+
+// A handler added with AddBlocking (a store write waiting for another process's lock, a folder
+// being removed) holds a thread of the blocking pool, not the only I/O thread.
+TEST_F(TransportTest, HealthzAnswersWhileABlockingHandlerWaits) {
+  io_threads_ = 1;
+  Start();
+  TestResponse held;
+  std::thread client([&] { held = Fetch(port_, "POST", "/held"); });
+  ASSERT_TRUE(gate_.WaitForArrival(std::chrono::seconds(10)));
+  const auto start = std::chrono::steady_clock::now();
+  const TestResponse health = Fetch(port_, "GET", "/healthz");
+  const auto waited = std::chrono::steady_clock::now() - start;
+  gate_.Open();
+  client.join();
+  EXPECT_EQ(health.status, 200u) << health.error;
+  EXPECT_LT(waited, std::chrono::seconds(2));
+  EXPECT_EQ(held.status, 200u) << held.error;
+  EXPECT_EQ(held.body, "released");
 }
 
 TEST_F(TransportTest, OneAddressCannotTakeEveryConnection) {
