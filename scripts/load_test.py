@@ -29,7 +29,7 @@ import sys
 import tempfile
 import time
 
-from upload_latency import ROOT, DEFAULT_PHOTOS, build_zip, free_port, wait_until_up
+from upload_latency import ROOT, DEFAULT_PHOTOS, build_zip, free_port, stop, wait_until_up
 
 LUA = os.path.join(ROOT, "scripts", "load", "count.lua")
 
@@ -160,12 +160,7 @@ def main():
         else:
             print("load: passed (no failed answer)")
     finally:
-        if worker is not None:
-            worker.terminate()
-            worker.wait(timeout=60)
-        if server is not None:
-            server.terminate()
-            server.wait(timeout=30)
+        stop(worker, server)
         shutil.rmtree(work, ignore_errors=True)
     sys.exit(1 if failed else 0)
 

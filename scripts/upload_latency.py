@@ -72,6 +72,14 @@ def poll(port, path, stop, samples, failures):
         time.sleep(max(0.0, 0.05 - elapsed / 1000.0))
 
 
+def stop(*processes):
+    """Asks each started process (None: never started) to end, and waits for it."""
+    for process in processes:
+        if process is not None:
+            process.terminate()
+            process.wait(timeout=60)
+
+
 def wait_until_up(port, deadline):
     while time.monotonic() < deadline:
         try:
@@ -165,12 +173,7 @@ def main():
                   (name, len(samples), percentile(samples, 50), percentile(samples, 99),
                    max(samples) if samples else float("nan"), len(failures)))
     finally:
-        if worker is not None:
-            worker.terminate()
-            worker.wait(timeout=60)
-        if server is not None:
-            server.terminate()
-            server.wait(timeout=30)
+        stop(worker, server)
         shutil.rmtree(work, ignore_errors=True)
 
 

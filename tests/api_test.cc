@@ -3,6 +3,7 @@
 // JobStore directly, standing in for a worker.
 #include "core/io/file_util.h"
 #include "server/http/test_client.h"
+#include "tests/long_test_util.h"
 #include "tests/server_process.h"
 
 #include <gtest/gtest.h>
@@ -690,16 +691,12 @@ TEST_F(ApiTest, DiskFullDuringAnUploadAnswers503AndLosesNothing) {
 // owns, nothing in tmp/; the server goes on accepting uploads. RECONDUIT_RANDOM_SEED repeats a
 // run.
 TEST_F(ApiTest, RandomServerKillsDuringUploadsLoseNothing) {
-  const char* long_tests = std::getenv("RECONDUIT_LONG_TESTS");
-  if (long_tests == nullptr || std::string(long_tests) != "1") {
+  if (!testing_util::LongTestsEnabled()) {
     GTEST_SKIP() << "a long test: ctest -L long -R api_random_kill (RECONDUIT_LONG_TESTS=1)";
   }
-  const auto env_int = [](const char* name, long fallback) {
-    const char* value = std::getenv(name);
-    return value != nullptr ? std::stol(value) : fallback;
-  };
-  const int kills = static_cast<int>(env_int("RECONDUIT_SERVER_KILLS", 10));
-  const auto seed = static_cast<unsigned>(env_int("RECONDUIT_RANDOM_SEED", std::random_device()()));
+  const int kills = static_cast<int>(testing_util::EnvLong("RECONDUIT_SERVER_KILLS", 10));
+  const auto seed =
+      static_cast<unsigned>(testing_util::EnvLong("RECONDUIT_RANDOM_SEED", std::random_device()()));
   std::printf("server kills: %d, seed %u (RECONDUIT_RANDOM_SEED repeats it)\n", kills, seed);
   std::mt19937 random(seed);
   std::uniform_int_distribution<int> life_ms(50, 2000);

@@ -36,6 +36,7 @@
 #include "core/scene/textured_scene.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
+#include "tests/long_test_util.h"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
@@ -616,10 +617,7 @@ void RunCase(SyntheticCase c, const RunOptions& options) {
 }
 
 // The long variant runs only from its ctest entry, which sets RECONDUIT_LONG_TESTS.
-bool LongTestsEnabled() {
-  const char* value = std::getenv("RECONDUIT_LONG_TESTS");
-  return value != nullptr && std::string(value) == "1";
-}
+using testing_util::LongTestsEnabled;
 
 TEST(DenseSynthetic, BoxRoomWithNoise) { RunCase(BoxRoom({}), {}); }
 

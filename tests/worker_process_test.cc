@@ -5,6 +5,7 @@
 // during a job (exit 0 quickly, job back in the queue, finished by the next worker), and the
 // configuration file.
 #include "core/io/file_util.h"
+#include "tests/long_test_util.h"
 #include "worker/worker_test_util.h"
 
 #include <gmock/gmock.h>
@@ -619,16 +620,12 @@ TEST_F(WorkerProcessTest, KillDashNineAtElevenMomentsEveryJobFinishesOnce) {
 // runs are its lost attempts plus the last). RECONDUIT_RANDOM_SEED repeats a run (the seed
 // is printed).
 TEST_F(WorkerProcessTest, RandomKillsLoseNoJob) {
-  const char* long_tests = std::getenv("RECONDUIT_LONG_TESTS");
-  if (long_tests == nullptr || std::string(long_tests) != "1") {
+  if (!testing_util::LongTestsEnabled()) {
     GTEST_SKIP() << "a long test: ctest -L long -R worker_random_kill (RECONDUIT_LONG_TESTS=1)";
   }
-  const auto env_int = [](const char* name, long fallback) {
-    const char* value = std::getenv(name);
-    return value != nullptr ? std::stol(value) : fallback;
-  };
-  const int kills = static_cast<int>(env_int("RECONDUIT_RANDOM_KILLS", 50));
-  const auto seed = static_cast<unsigned>(env_int("RECONDUIT_RANDOM_SEED", std::random_device()()));
+  const int kills = static_cast<int>(testing_util::EnvLong("RECONDUIT_RANDOM_KILLS", 50));
+  const auto seed =
+      static_cast<unsigned>(testing_util::EnvLong("RECONDUIT_RANDOM_SEED", std::random_device()()));
   std::printf("random kills: %d, seed %u (RECONDUIT_RANDOM_SEED repeats it)\n", kills, seed);
   std::mt19937 random(seed);
   std::uniform_int_distribution<int> life_ms(100, 5000);

@@ -102,21 +102,20 @@ bool MoreSpecific(const Route& a, const Route& b) {
 }  // namespace
 
 void Router::Add(HttpVerb verb, std::string_view pattern, Handler handler) {
-  THROW_CHECK(handler != nullptr) << "null handler for " << pattern;
-  auto route = std::make_unique<Route>();
-  route->verb = verb;
-  route->pattern = std::string(pattern);
-  route->handler = std::move(handler);
-  AddRoute(std::move(route));
+  AddHandler(verb, pattern, std::move(handler), /*blocking=*/false);
 }
 
 void Router::AddBlocking(HttpVerb verb, std::string_view pattern, Handler handler) {
+  AddHandler(verb, pattern, std::move(handler), /*blocking=*/true);
+}
+
+void Router::AddHandler(HttpVerb verb, std::string_view pattern, Handler handler, bool blocking) {
   THROW_CHECK(handler != nullptr) << "null handler for " << pattern;
   auto route = std::make_unique<Route>();
   route->verb = verb;
   route->pattern = std::string(pattern);
   route->handler = std::move(handler);
-  route->blocking = true;
+  route->blocking = blocking;
   AddRoute(std::move(route));
 }
 

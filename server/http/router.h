@@ -123,6 +123,7 @@ class Router {
   const std::vector<std::unique_ptr<Route>>& routes() const { return routes_; }
 
  private:
+  void AddHandler(HttpVerb verb, std::string_view pattern, Handler handler, bool blocking);
   void AddRoute(std::unique_ptr<Route> route);
 
   // unique_ptr keeps Route addresses stable for RouteMatch::route.
