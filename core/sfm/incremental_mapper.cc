@@ -2,6 +2,7 @@
 
 #include "core/estimators/triangulation.h"
 #include "core/sfm/bundle_adjustment.h"
+#include "core/sfm/relative_registration.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
 
@@ -310,7 +311,8 @@ class Mapper {
   // Growing the model.
 
   void Grow(Reconstruction* model) {
-    std::set<int> failed;  // Photos that failed since the model last changed.
+    std::set<int> failed;           // Photos that failed since the model last changed.
+    std::set<int> failed_relative;  // ... by relative pose.
     while (model->images.size() < max_images_) {
       cancel_.ThrowIfCanceled();
       std::vector<std::pair<int, int>> candidates;  // (visible points, image)
@@ -324,7 +326,6 @@ class Mapper {
         for (int track : track_of_.at(id)) visible += track >= 0 && track_point_.count(track);
         if (visible >= options_.min_registration_points) candidates.emplace_back(visible, id);
       }
-      if (candidates.empty()) return;
       std::stable_sort(candidates.begin(), candidates.end(),
                        [](const auto& a, const auto& b) { return a.first > b.first; });
       bool registered = false;
@@ -342,7 +343,12 @@ class Mapper {
         LOG_DEBUG << "sfm: cannot register " << input_.images.at(id).name << ": " << why;
         failed.insert(id);
       }
+      if (!registered && options_.relative_registration) {
+        registered = RegisterByRelativePose(model, &failed_relative);
+        if (registered) failed.clear();
+      }
       if (!registered) return;
+      failed_relative.clear();
     }
   }
 
@@ -401,12 +407,24 @@ class Mapper {
     RefinePose(refine, camera, points2d, points3d, &pose);
 
     AddImage(model, image_id, pose);
+    const int added = AddVisibleObservations(model, image_id);
+    *why = std::to_string(inliers.size()) + " PnP inliers of " + std::to_string(object.size());
+    return added >= options_.min_registration_points / 2;
+  }
+
+  // Adds the observations of the reconstructed points that the just-added photo sees within
+  // the reprojection threshold; returns how many.
+  int AddVisibleObservations(Reconstruction* model, int image_id) {
+    const MapperImage& image = input_.images.at(image_id);
+    const Camera& camera = model->cameras.at(image.camera_id);
+    const Rigid3d pose = model->images.at(image_id).cam_from_world;
+    const std::vector<int>& tracks = track_of_.at(image_id);
     int added = 0;
     for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
       if (tracks[kp] < 0) continue;
       auto it = track_point_.find(tracks[kp]);
       if (it == track_point_.end()) continue;
-      Point3D& point = model->points.at(it->second);
+      const Point3D& point = model->points.at(it->second);
       if (!HasPositiveDepth(pose, point.xyz_in_world)) continue;
       const auto pixel = camera.ImgFromCam(pose * point.xyz_in_world);
       if (!pixel || (*pixel - image.keypoints[kp]).norm() > options_.max_reprojection_error_px)
@@ -414,8 +432,118 @@ class Mapper {
       model->AddObservation(it->second, {image_id, kp});
       ++added;
     }
-    *why = std::to_string(inliers.size()) + " PnP inliers of " + std::to_string(object.size());
-    return added >= options_.min_registration_points / 2;
+    return added;
+  }
+
+  // Registration by relative pose (relative_registration.h) when PnP can place no photo: the
+  // unregistered photo with most verified matches to registered photos first. Photos that
+  // fail go into `failed`.
+  bool RegisterByRelativePose(Reconstruction* model, std::set<int>* failed) {
+    std::map<int, std::vector<const MapperPair*>> links;  // Photo -> pairs with the model.
+    for (const MapperPair& pair : input_.pairs) {
+      if (!pair.epipolar ||
+          static_cast<int>(pair.matches.size()) < options_.relative.min_pair_inliers) {
+        continue;
+      }
+      const bool in1 = model->images.count(pair.image1) > 0;
+      const bool in2 = model->images.count(pair.image2) > 0;
+      if (in1 == in2) continue;
+      const int fresh = in1 ? pair.image2 : pair.image1;
+      if (!failed->count(fresh)) links[fresh].push_back(&pair);
+    }
+    std::vector<std::pair<std::size_t, int>> ranked;  // (matches, photo)
+    for (const auto& [id, pairs] : links) {
+      std::size_t matches = 0;
+      for (const MapperPair* pair : pairs) matches += pair->matches.size();
+      ranked.emplace_back(matches, id);
+    }
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (const auto& [matches, id] : ranked) {
+      cancel_.ThrowIfCanceled();
+      const MapperImage& image = input_.images.at(id);
+      if (!model->cameras.count(image.camera_id)) {
+        model->cameras[image.camera_id] = cameras_.at(image.camera_id);
+      }
+      std::string how;
+      const std::optional<Rigid3d> pose = RelativePoseOf(*model, id, links.at(id), &how);
+      if (!pose) {
+        LOG_DEBUG << "sfm: cannot register " << image.name << " by relative pose: " << how;
+        failed->insert(id);
+        continue;
+      }
+      AddImage(model, id, *pose);
+      const int added = AddVisibleObservations(model, id);
+      Note("registered " + image.name + " by relative pose " + how + "; it sees " +
+           std::to_string(added) + " points");
+      if (!used_.count(id)) progress_.Advance();
+      AfterRegistration(model, id);
+      return true;
+    }
+    return false;
+  }
+
+  // The pose of unregistered photo `id` from its `pairs` with registered photos: the scale from
+  // the points it sees, else the rays of two or more neighbours.
+  std::optional<Rigid3d> RelativePoseOf(const Reconstruction& model,
+                                        int id,
+                                        const std::vector<const MapperPair*>& pairs,
+                                        std::string* how) {
+    const MapperImage& image = input_.images.at(id);
+    const Camera& camera = model.cameras.at(image.camera_id);
+    std::vector<std::pair<NeighbourPose, int>> neighbours;  // With the neighbour's id.
+    for (const MapperPair* pair : pairs) {
+      const bool registered_first = pair->image1 != id;
+      const int other = registered_first ? pair->image1 : pair->image2;
+      const RegisteredImage& neighbour = model.images.at(other);
+      const Camera& other_camera = model.cameras.at(neighbour.camera_id);
+      std::vector<Eigen::Vector2d> a, b;
+      for (const FeatureMatch& m : pair->matches) {
+        const auto x =
+            Normalized(other_camera, neighbour.keypoints[registered_first ? m.index1 : m.index2]);
+        const auto y = Normalized(camera, image.keypoints[registered_first ? m.index2 : m.index1]);
+        if (!x || !y) continue;
+        a.push_back(*x);
+        b.push_back(*y);
+      }
+      cv::theRNG().state = kSeed + id;
+      const double focal = 0.5 * (camera.focal + other_camera.focal);
+      if (auto relative = EstimateRelativePose(a, b, focal, options_.relative)) {
+        neighbours.push_back({{neighbour.cam_from_world, *relative}, other});
+      }
+    }
+    std::stable_sort(neighbours.begin(), neighbours.end(), [](const auto& a, const auto& b) {
+      return a.first.relative.num_inliers > b.first.relative.num_inliers;
+    });
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> observations;
+    const std::vector<int>& tracks = track_of_.at(id);
+    for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
+      auto it = tracks[kp] < 0 ? track_point_.end() : track_point_.find(tracks[kp]);
+      if (it == track_point_.end()) continue;
+      const auto n = Normalized(camera, image.keypoints[kp]);
+      if (!n) continue;
+      points.push_back(model.points.at(it->second).xyz_in_world);
+      observations.push_back(*n);
+    }
+    for (const auto& [neighbour, other] : neighbours) {
+      const auto r = RegisterFromPoints(neighbour, points, observations, options_.relative);
+      if (!r) continue;
+      *how = "from " + input_.images.at(other).name + " (" +
+             std::to_string(neighbour.relative.num_inliers) + " inliers), scale from " +
+             std::to_string(r->num_points) + " of " + std::to_string(points.size()) + " points";
+      return r->cam_from_world;
+    }
+    std::vector<NeighbourPose> rays;
+    for (const auto& [neighbour, other] : neighbours) rays.push_back(neighbour);
+    if (const auto r = RegisterFromRays(rays, options_.relative)) {
+      *how = "from the rays of " + std::to_string(r->num_rays) + " neighbours";
+      return r->cam_from_world;
+    }
+    *how = std::to_string(neighbours.size()) + " of " + std::to_string(pairs.size()) +
+           " pairs with a relative pose, " + std::to_string(points.size()) +
+           " points seen: no scale";
+    return std::nullopt;
   }
 
   void AfterRegistration(Reconstruction* model, int image_id) {
@@ -903,6 +1031,8 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
       << focal_search_min_multiple << " and " << focal_search_max_multiple;
   } else if (!(max_principal_point_shift > 0 && max_principal_point_shift <= 0.5)) {
     m << "max_principal_point_shift must be in (0, 0.5], got " << max_principal_point_shift;
+  } else if (std::string relative_error; !relative.Check(&relative_error)) {
+    m << "relative: " << relative_error;
   } else {
     return true;
   }

@@ -35,6 +35,7 @@
 #include "core/feature/matcher.h"
 #include "core/scene/reconstruction.h"
 #include "core/sfm/bundle_adjustment.h"
+#include "core/sfm/relative_registration.h"
 #include "core/sfm/tracks.h"
 #include "core/util/cancel.h"
 #include "core/util/progress.h"
@@ -139,6 +140,12 @@ struct IncrementalMapperOptions {
   int focal_search_hypotheses = 6;         // [1, ...]
   double focal_search_min_multiple = 0.5;  // (0, max)
   double focal_search_max_multiple = 5.0;
+  // When PnP can register no photo (too few of its keypoints see reconstructed points, as
+  // when photos are far apart), register one from its two-view geometry with registered
+  // photos (relative_registration.h): the scale of the baseline from the few points it sees,
+  // or the rays from two neighbours.
+  bool relative_registration = true;
+  RelativeRegistrationOptions relative;
   // Models with fewer photos are dropped. [2, ...]
   int min_model_images = 2;
   // Threads Ceres uses in bundle adjustment; <= 0 means all hardware threads. One by default,

@@ -325,8 +325,12 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
   }
   Progress progress;
   MapperSummary summary;
-  const auto models = ReconstructIncrementally(input, IncrementalMapperOptions(), progress,
-                                               CancelToken(), &summary);
+  // Registration by relative pose would cross the weak link from photo 2 (the test
+  // WideGapsNeedRelativePoses): this test is about the later model's reach.
+  IncrementalMapperOptions no_relative;
+  no_relative.relative_registration = false;
+  const auto models =
+      ReconstructIncrementally(input, no_relative, progress, CancelToken(), &summary);
   ASSERT_EQ(models.size(), 2u);
   std::set<int> larger, smaller;
   for (const auto& [id, image] : models[0].images) larger.insert(id);
@@ -349,6 +353,61 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
     tracks += seen >= 2;
   }
   EXPECT_EQ(models[0].points.size(), tracks);
+}
+
+// A ring of 8 photos 45 deg apart (templeSparseRing every second photo): each point faces one
+// way and is seen from the photos within 50 deg of it, so neighbours share about 60 matches
+// but a photo sees only a handful of the points its registered neighbour triangulated: fewer
+// than PnP needs (20). Registration by relative pose places each photo from its neighbour's
+// two-view geometry with the scale from those few points.
+struct WideRingRun {
+  SyntheticScene scene;
+  std::vector<Reconstruction> models;
+  MapperSummary summary;
+};
+
+WideRingRun ReconstructWideRing(bool relative_registration) {
+  SyntheticSceneOptions scene_options;
+  scene_options.num_cameras = 8;
+  scene_options.num_points = 400;
+  scene_options.width = 640;
+  scene_options.height = 480;
+  scene_options.focal = 700;
+  scene_options.camera_distance = 6.0;
+  scene_options.camera_height = 1.5;
+  scene_options.scene_radius = 1.5;
+  scene_options.pixel_noise_stddev = 0.3;
+  scene_options.seed = 5;
+  WideRingRun run;
+  run.scene = SynthesizeScene(scene_options);
+  MapperInput input = InputFromScene(run.scene, scene_options.focal);
+  FilterMatches(run.scene, &input, [](int i, int j, int point) {
+    const double facing = std::fmod(point * 137.5, 360.0);
+    auto sees = [&](int k) { return std::abs(std::remainder(45.0 * k - facing, 360.0)) <= 50; };
+    return sees(i) && sees(j);
+  });
+  IncrementalMapperOptions options;
+  options.relative_registration = relative_registration;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
+  const WideRingRun without = ReconstructWideRing(false);
+  ASSERT_FALSE(without.models.empty());
+  EXPECT_LE(without.models.front().images.size(), 3u) << "PnP alone stops at the first gap";
+
+  const WideRingRun with = ReconstructWideRing(true);
+  ASSERT_EQ(with.models.size(), 1u);
+  EXPECT_EQ(with.models.front().images.size(), 8u);
+  int relative = 0;
+  for (const std::string& line : with.summary.log)
+    relative += line.find("by relative pose") != std::string::npos;
+  EXPECT_GE(relative, 5);
+  const Errors errors = Compare(with.models.front(), with.scene);
+  EXPECT_LT(errors.max_rotation_deg, 0.5);
+  EXPECT_LT(errors.max_center, 0.01 * 6.0);
 }
 
 TEST(ReconstructIncrementally, PureRotationCannotInitialise) {
