@@ -114,13 +114,23 @@ class Mapper {
   // A small model for the focal search: the initial pair, photos up to `max_images`, then one
   // global adjustment (which refines the focal when the model has at least
   // `min_images_for_intrinsics` photos). The model is empty when no initial pair is found.
-  Reconstruction RunTrial(int max_images) {
+  // When a seed's model stays at two photos (its pair is cut off from the others), the next
+  // seed among the photos left is tried, up to `max_seeds` seeds.
+  Reconstruction RunTrial(int max_images, int max_seeds) {
     max_images_ = static_cast<std::size_t>(max_images);
-    Reconstruction model;
-    if (!Initialize(&model)) return model;
-    Grow(&model);
-    if (model.images.size() > 2) GlobalAdjust(&model, /*final=*/false);
-    return model;
+    for (int seed = 0; seed < max_seeds; ++seed) {
+      track_point_.clear();
+      point_track_.clear();
+      Reconstruction model;
+      if (!Initialize(&model)) return model;
+      Grow(&model);
+      if (model.images.size() > 2) {
+        GlobalAdjust(&model, /*final=*/false);
+        return model;
+      }
+      for (const auto& [id, image] : model.images) used_.insert(id);
+    }
+    return {};
   }
 
  private:
@@ -412,23 +422,25 @@ class Mapper {
     return added >= options_.min_registration_points / 2;
   }
 
-  // Adds the observations of the reconstructed points that the just-added photo sees within
-  // the reprojection threshold; returns how many.
-  int AddVisibleObservations(Reconstruction* model, int image_id) {
+  // Adds the observations of the reconstructed points that a registered photo sees within
+  // `max_error_px` (default: the reprojection threshold) and does not observe yet; returns
+  // how many.
+  int AddVisibleObservations(Reconstruction* model, int image_id, double max_error_px = 0) {
+    if (max_error_px <= 0) max_error_px = options_.max_reprojection_error_px;
     const MapperImage& image = input_.images.at(image_id);
     const Camera& camera = model->cameras.at(image.camera_id);
     const Rigid3d pose = model->images.at(image_id).cam_from_world;
     const std::vector<int>& tracks = track_of_.at(image_id);
     int added = 0;
     for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
-      if (tracks[kp] < 0) continue;
+      if (tracks[kp] < 0 || model->images.at(image_id).point_for_keypoint[kp] != kInvalidId)
+        continue;
       auto it = track_point_.find(tracks[kp]);
       if (it == track_point_.end()) continue;
       const Point3D& point = model->points.at(it->second);
       if (!HasPositiveDepth(pose, point.xyz_in_world)) continue;
       const auto pixel = camera.ImgFromCam(pose * point.xyz_in_world);
-      if (!pixel || (*pixel - image.keypoints[kp]).norm() > options_.max_reprojection_error_px)
-        continue;
+      if (!pixel || (*pixel - image.keypoints[kp]).norm() > max_error_px) continue;
       model->AddObservation(it->second, {image_id, kp});
       ++added;
     }
@@ -473,11 +485,20 @@ class Mapper {
         continue;
       }
       AddImage(model, id, *pose);
-      const int added = AddVisibleObservations(model, id);
-      Note("registered " + image.name + " by relative pose " + how + "; it sees " +
-           std::to_string(added) + " points");
+      // The pose from two views is only as good as they make it (relative_registration.h):
+      // the points that agreed on the scale may reproject well beyond the usual threshold.
+      // Their observations tie the photo to the model in the local adjustment (the pair's own
+      // points only to its neighbour, up to two-view ambiguities), which also filters them.
+      const double loose_px = model->cameras.at(image.camera_id).focal *
+                              std::tan(options_.relative.max_scale_angle_deg * M_PI / 180.0);
+      const int added =
+          AddVisibleObservations(model, id, std::max(loose_px, options_.max_reprojection_error_px));
       if (!used_.count(id)) progress_.Advance();
       AfterRegistration(model, id);
+      const int more = AddVisibleObservations(model, id);
+      Note("registered " + image.name + " by relative pose " + how + "; it sees " +
+           std::to_string(added) + " points, " + std::to_string(more) +
+           " more after the local adjustment");
       return true;
     }
     return false;
@@ -910,7 +931,8 @@ std::map<int, Camera> SearchFocal(const MapperInput& input,
     Progress quiet;
     Mapper mapper(input, trial_options, quiet, cancel, nullptr);
     mapper.SetInitialCameras(start);
-    const Reconstruction model = mapper.RunTrial(options.focal_search_images);
+    const Reconstruction model =
+        mapper.RunTrial(options.focal_search_images, options.focal_search_seeds);
     FocalTrial trial;
     trial.result = start;
     trial.images = static_cast<int>(model.images.size());
@@ -960,10 +982,11 @@ std::map<int, Camera> SearchFocal(const MapperInput& input,
     return chosen.result;
   };
 
-  const FocalTrial first = run(input.cameras);
-  if (usable(first)) {
-    const FocalTrial second = run(first.result);
-    if (usable(second) && agree(first, second)) return done(second, "converged");
+  FocalTrial previous = run(input.cameras);
+  for (int round = 1; round < options.focal_search_rounds && usable(previous); ++round) {
+    FocalTrial next = run(previous.result);
+    if (usable(next) && agree(previous, next)) return done(next, "converged");
+    previous = std::move(next);
   }
   std::vector<FocalTrial> trials;
   const int n = options.focal_search_hypotheses;
@@ -1022,6 +1045,10 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
     m << "focal_search_images must be at least 3, got " << focal_search_images;
   } else if (!(focal_search_tolerance > 0 && focal_search_tolerance < 1)) {
     m << "focal_search_tolerance must be in (0, 1), got " << focal_search_tolerance;
+  } else if (focal_search_rounds < 2) {
+    m << "focal_search_rounds must be at least 2, got " << focal_search_rounds;
+  } else if (focal_search_seeds < 1) {
+    m << "focal_search_seeds must be at least 1, got " << focal_search_seeds;
   } else if (focal_search_hypotheses < 1) {
     m << "focal_search_hypotheses must be at least 1, got " << focal_search_hypotheses;
   } else if (!(focal_search_min_multiple > 0 &&
