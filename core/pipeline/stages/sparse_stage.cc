@@ -214,22 +214,10 @@ nlohmann::json CalibrateCameras(const std::map<int, std::vector<const IngestedIm
   return records;
 }
 
-// Pairs whose two-view model has fewer RANSAC inliers (guided matches not counted) are
-// left out of the tracks and the mapper: the matching stage keeps pairs from 15, and on
-// photos of one object from all sides such barely verified pairs are often the object's
-// other, similar-looking side (templeSparseRing every second photo: two pairs 150-165 deg
-// apart with 15 inliers each) whose matches would join unrelated tracks.
-constexpr int kMinPairInliers = 20;
-
 // The verified pairs for the mapper, and the tracks they make.
 void AddPairsAndTracks(const std::vector<VerifiedPair>& pairs, MapperInput* input) {
   std::vector<PairMatches> pair_matches;
-  int weak = 0;
   for (const VerifiedPair& pair : pairs) {
-    if (std::max(pair.num_inliers_F, pair.num_inliers_H) < kMinPairInliers) {
-      ++weak;
-      continue;
-    }
     pair_matches.push_back(pair.matches);
     MapperPair mp;
     mp.image1 = pair.matches.image1;
@@ -242,8 +230,6 @@ void AddPairsAndTracks(const std::vector<VerifiedPair>& pairs, MapperInput* inpu
   }
   TrackStatistics track_stats;
   input->tracks = BuildTracks(pair_matches, 2, &track_stats);
-  LOG_INFO << "sparse: " << weak << " pairs with fewer than " << kMinPairInliers
-           << " inliers left out";
   LOG_INFO << "sparse: " << track_stats.num_tracks << " tracks, " << track_stats.num_observations
            << " observations (" << track_stats.num_conflicting_matches
            << " matches refused: they would join two keypoints of one photo)";
