@@ -118,19 +118,21 @@ class Mapper {
   // seed among the photos left is tried, up to `max_seeds` seeds.
   Reconstruction RunTrial(int max_images, int max_seeds) {
     max_images_ = static_cast<std::size_t>(max_images);
+    Reconstruction model;
     for (int seed = 0; seed < max_seeds; ++seed) {
       track_point_.clear();
       point_track_.clear();
-      Reconstruction model;
-      if (!Initialize(&model)) return model;
+      Reconstruction next;
+      if (!Initialize(&next)) break;
+      model = std::move(next);
       Grow(&model);
       if (model.images.size() > 2) {
         GlobalAdjust(&model, /*final=*/false);
-        return model;
+        break;
       }
       for (const auto& [id, image] : model.images) used_.insert(id);
     }
-    return {};
+    return model;
   }
 
  private:

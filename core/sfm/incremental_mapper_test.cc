@@ -286,6 +286,56 @@ TEST(ReconstructIncrementally, FocalSearchMultiStart) {
   EXPECT_NEAR(run.models.front().cameras.at(0).focal, run.truth, 0.02 * run.truth);
 }
 
+// The first 8 temple photos: the pair ranked first as a seed is cut off from the others by a
+// wide gap, so a trial from it stays at two photos and cannot refine the focal. The trial
+// then moves on to the next seed (IncrementalMapperOptions::focal_search_seeds).
+RingRun ReconstructRingWithAnIsolatedSeed(int focal_search_seeds) {
+  SyntheticSceneOptions scene_options;
+  scene_options.num_cameras = 12;
+  scene_options.num_points = 3000;
+  scene_options.width = 640;
+  scene_options.height = 480;
+  scene_options.focal = 1536;
+  scene_options.camera_distance = 6.0;
+  scene_options.camera_height = 1.0;
+  scene_options.scene_radius = 0.8;
+  scene_options.target_jitter = 0.0;
+  scene_options.pixel_noise_stddev = 0.3;
+  scene_options.seed = 14;
+  const SyntheticScene scene = SynthesizeScene(scene_options);
+  MapperInput input = InputFromScene(scene, /*focal_guess=*/1.2 * 640);
+  FilterMatches(scene, &input, [](int i, int j, int point) {
+    const double facing = std::fmod(point * 137.5, 360.0);
+    auto sees = [&](int k) { return std::abs(std::remainder(30.0 * k - facing, 360.0)) <= 50; };
+    const bool cut_off = (i <= 1) != (j <= 1);  // Photos 0 and 1 see only each other.
+    return sees(i) && sees(j) && !cut_off;
+  });
+  for (MapperPair& pair : input.pairs) {
+    // Seeds are ranked by matches discounted by the homography's share: 0 + 1 first.
+    pair.num_inliers_H = pair.image1 == 0 && pair.image2 == 1 ? 0 : pair.num_inliers_F;
+  }
+  input.uncertain_focal_camera_ids = {0};
+  IncrementalMapperOptions options;
+  options.focal_search_seeds = focal_search_seeds;
+  RingRun run;
+  run.truth = scene_options.focal;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, FocalSearchMovesOnFromAnIsolatedSeed) {
+  const RingRun one_seed = ReconstructRingWithAnIsolatedSeed(1);
+  EXPECT_FALSE(one_seed.summary.searched_focal.count(0))
+      << "every trial stays at the isolated pair: no focal";
+  const RingRun run = ReconstructRingWithAnIsolatedSeed(3);
+  ASSERT_TRUE(run.summary.searched_focal.count(0));
+  EXPECT_NEAR(run.summary.searched_focal.at(0), run.truth, 0.05 * run.truth);
+  ASSERT_FALSE(run.models.empty());
+  EXPECT_EQ(run.models.front().images.size(), 10u);
+  EXPECT_NEAR(run.models.front().cameras.at(0).focal, run.truth, 0.01 * run.truth);
+}
+
 TEST(ReconstructIncrementally, NoFocalSearchWithoutUncertainCameras) {
   SyntheticSceneOptions options;
   options.num_points = 300;
