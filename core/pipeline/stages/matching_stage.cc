@@ -5,6 +5,7 @@
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/pairs_stage.h"
+#include "core/pipeline/stages/weak_pairs.h"
 #include "core/util/logging.h"
 #include "core/util/parallel.h"
 
@@ -165,22 +166,6 @@ Status ReadPairFeatures(const Workspace& workspace,
   return Status::Ok();
 }
 
-// Trying harder on weak pairs (photos far apart: the true match's descriptor has changed with
-// the viewpoint and often fails Lowe's 0.8 test against a look-alike). A pair whose two-view
-// model has fewer RANSAC inliers than kStrongPairInliers is matched again at the ratio
-// kRetryRatio when one of its photos has fewer than kMinStrongPairs strong pairs (too few to
-// sit inside a chain of photos); photos with enough strong partners are left as they are, so
-// well-connected sets do not change (on the full templeSparseRing, retrying its 5 weak pairs
-// moved the focal by 0.3 %, about its standard deviation). The retry is kept only when its
-// fundamental matrix reaches kStrongPairInliers inliers and kRetryMinInlierShare of the
-// putative matches: at the looser ratio a false F finds 20-30 inliers among 110-170 putative
-// matches easily, 15-22 % of them (templeSparseRing every second photo: 13 such pairs 120-165
-// deg apart), while the true neighbours 42 deg apart reach 54 of 153, 35 % (24 at 0.8).
-constexpr int kStrongPairInliers = 30;
-constexpr int kMinStrongPairs = 2;
-constexpr double kRetryRatio = 0.9;
-constexpr double kRetryMinInlierShare = 0.25;
-
 // Putative matches at Lowe's ratio `max_ratio` and the two-view geometry of their inliers.
 VerifiedPair VerifyPutative(const ImagePair& pair,
                             const PairFeatures& in,
@@ -236,46 +221,29 @@ VerifiedPair VerifyPair(const ImagePair& pair,
   return out;
 }
 
-bool Strong(const VerifiedPair& p) {
-  return !p.matches.matches.empty() &&
-         std::max(p.num_inliers_F, p.num_inliers_H) >= kStrongPairInliers;
-}
-
-// The weak pairs to verify again (see kStrongPairInliers): indices into `verified`.
-std::vector<std::size_t> PairsToRetry(const std::vector<VerifiedPair>& verified) {
-  std::map<int, int> strong;  // Image -> strong pairs.
-  for (const VerifiedPair& p : verified) {
-    if (!Strong(p)) continue;
-    ++strong[p.matches.image1];
-    ++strong[p.matches.image2];
-  }
-  std::vector<std::size_t> retry;
-  for (std::size_t k = 0; k < verified.size(); ++k) {
-    const VerifiedPair& p = verified[k];
-    if (!Strong(p) && (strong[p.matches.image1] < kMinStrongPairs ||
-                       strong[p.matches.image2] < kMinStrongPairs)) {
-      retry.push_back(k);
-    }
-  }
-  return retry;
-}
-
-// Verifies the pairs PairsToRetry chooses again at kRetryRatio, keeping the retries that pass.
+// Verifies the weak pairs PairsToRetry chooses again at the looser ratio (weak_pairs.h),
+// keeping the retries that pass KeepRetry.
 void RetryWeakPairs(const std::vector<ImagePair>& chosen,
                     const PairFeatures& features,
                     const TwoViewGeometryOptions& geometry,
                     StageContext& context,
                     std::vector<VerifiedPair>* verified) {
-  const std::vector<std::size_t> retry = PairsToRetry(*verified);
+  const WeakPairOptions options;
+  std::vector<PairStrength> strengths;
+  for (const VerifiedPair& p : *verified) {
+    strengths.push_back({p.matches.image1, p.matches.image2,
+                         std::max(p.num_inliers_F, p.num_inliers_H), !p.matches.matches.empty()});
+  }
+  const std::vector<std::size_t> retry = PairsToRetry(strengths, options);
   ParallelFor(
       0, retry.size(),
       [&](std::size_t k) {
         context.cancel.ThrowIfCanceled();
         VerifiedPair again =
-            VerifyPair(chosen[retry[k]], features, geometry, kRetryRatio, context.cancel);
-        if (again.type == TwoViewModelType::kFundamental && !again.matches.matches.empty() &&
-            again.num_inliers_F >= kStrongPairInliers &&
-            again.num_inliers_F >= kRetryMinInlierShare * again.num_putative) {
+            VerifyPair(chosen[retry[k]], features, geometry, options.retry_ratio, context.cancel);
+        if (!again.matches.matches.empty() &&
+            KeepRetry(again.type == TwoViewModelType::kFundamental, again.num_inliers_F,
+                      again.num_putative, options)) {
           again.retried = true;
           (*verified)[retry[k]] = std::move(again);
         }
@@ -284,8 +252,8 @@ void RetryWeakPairs(const std::vector<ImagePair>& chosen,
   int kept = 0;
   for (std::size_t k : retry) kept += (*verified)[k].retried;
   LOG_INFO << "matching: " << retry.size() << " weak pairs of photos with fewer than "
-           << kMinStrongPairs << " strong pairs verified again at Lowe's ratio " << kRetryRatio
-           << "; " << kept << " kept";
+           << options.min_strong_pairs << " strong pairs verified again at Lowe's ratio "
+           << options.retry_ratio << "; " << kept << " kept";
 }
 
 // The verified pairs sorted out: those with matches (kept), one summary.json record per pair,
@@ -382,7 +350,7 @@ StageResult MatchingStage::Run(StageContext& context) const {
            << " with epipolar geometry, " << tally.num_h << " planar or rotation-only, "
            << tally.inliers << " inlier matches (" << tally.guided
            << " of them from guided matching); " << tally.retried
-           << " weak pairs kept from a second verification at Lowe's ratio " << kRetryRatio;
+           << " weak pairs kept from a second verification at a looser ratio test";
   if (tally.usable.empty()) {
     return StageResult::Degenerate("no pair of photos could be matched: do the photos overlap?");
   }
