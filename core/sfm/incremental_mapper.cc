@@ -496,6 +496,7 @@ class Mapper {
       const int added =
           AddVisibleObservations(model, id, std::max(loose_px, options_.max_reprojection_error_px));
       if (!used_.count(id)) progress_.Advance();
+      if (summary_ != nullptr) ++summary_->num_relative_registrations;
       AfterRegistration(model, id);
       const int more = AddVisibleObservations(model, id);
       Note("registered " + image.name + " by relative pose " + how + "; it sees " +

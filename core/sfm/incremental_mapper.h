@@ -11,6 +11,10 @@
 //     and the median triangulation angle is large enough.
 //  2. Registration. The unregistered photo that sees most reconstructed points is posed by
 //     P3P in RANSAC (OpenCV's solvePnPRansac on normalised points) and refined (RefinePose).
+//     When PnP can place no photo (photos far apart see too few of the model's points), one
+//     is registered from its two-view geometry with registered photos instead
+//     (relative_registration.h: the scale from the few points it sees, or two neighbours'
+//     rays), the photo with most verified matches to the model first.
 //  3. Triangulation of the tracks it shares with registered photos (DLT over all registered
 //     observations, with depth, reprojection and angle checks); observations of existing
 //     points are added when they reproject well.
@@ -174,6 +178,9 @@ struct MapperSummary {
   int num_images = 0;
   int num_points = 0;
   double mean_reprojection_error_px = 0.0;
+  // Photos registered by relative pose (IncrementalMapperOptions::relative_registration), in
+  // every model built, including ones later dropped or merged.
+  int num_relative_registrations = 0;
   std::vector<std::string> log;  // One line per notable event (initial pairs, failures).
   // Per camera id: the focal length the reconstruction started from after the focal search
   // (only cameras that were searched).

@@ -457,6 +457,8 @@ TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
   for (const std::string& line : with.summary.log)
     relative += line.find("by relative pose") != std::string::npos;
   EXPECT_GE(relative, 5);
+  EXPECT_EQ(with.summary.num_relative_registrations, relative);
+  EXPECT_EQ(without.summary.num_relative_registrations, 0);
   const Errors errors = Compare(with.models.front(), with.scene);
   EXPECT_LT(errors.max_rotation_deg, 0.5);
   EXPECT_LT(errors.max_center, 0.01 * 6.0);
