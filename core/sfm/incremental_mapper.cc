@@ -530,7 +530,6 @@ class Mapper {
         a.push_back(*x);
         b.push_back(*y);
       }
-      cv::theRNG().state = kSeed + id;
       const double focal = 0.5 * (camera.focal + other_camera.focal);
       if (auto relative = EstimateRelativePose(a, b, focal, options_.relative)) {
         neighbours.push_back({{neighbour.cam_from_world, *relative}, other});
