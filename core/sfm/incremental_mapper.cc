@@ -2,6 +2,7 @@
 
 #include "core/estimators/triangulation.h"
 #include "core/sfm/bundle_adjustment.h"
+#include "core/sfm/relative_registration.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
 
@@ -113,12 +114,24 @@ class Mapper {
   // A small model for the focal search: the initial pair, photos up to `max_images`, then one
   // global adjustment (which refines the focal when the model has at least
   // `min_images_for_intrinsics` photos). The model is empty when no initial pair is found.
-  Reconstruction RunTrial(int max_images) {
+  // When a seed's model stays at two photos (its pair is cut off from the others), the next
+  // seed among the photos left is tried, up to `max_seeds` seeds.
+  Reconstruction RunTrial(int max_images, int max_seeds) {
     max_images_ = static_cast<std::size_t>(max_images);
     Reconstruction model;
-    if (!Initialize(&model)) return model;
-    Grow(&model);
-    if (model.images.size() > 2) GlobalAdjust(&model, /*final=*/false);
+    for (int seed = 0; seed < max_seeds; ++seed) {
+      track_point_.clear();
+      point_track_.clear();
+      Reconstruction next;
+      if (!Initialize(&next)) break;
+      model = std::move(next);
+      Grow(&model);
+      if (model.images.size() > 2) {
+        GlobalAdjust(&model, /*final=*/false);
+        break;
+      }
+      for (const auto& [id, image] : model.images) used_.insert(id);
+    }
     return model;
   }
 
@@ -310,7 +323,8 @@ class Mapper {
   // Growing the model.
 
   void Grow(Reconstruction* model) {
-    std::set<int> failed;  // Photos that failed since the model last changed.
+    std::set<int> failed;           // Photos that failed since the model last changed.
+    std::set<int> failed_relative;  // ... by relative pose.
     while (model->images.size() < max_images_) {
       cancel_.ThrowIfCanceled();
       std::vector<std::pair<int, int>> candidates;  // (visible points, image)
@@ -324,7 +338,6 @@ class Mapper {
         for (int track : track_of_.at(id)) visible += track >= 0 && track_point_.count(track);
         if (visible >= options_.min_registration_points) candidates.emplace_back(visible, id);
       }
-      if (candidates.empty()) return;
       std::stable_sort(candidates.begin(), candidates.end(),
                        [](const auto& a, const auto& b) { return a.first > b.first; });
       bool registered = false;
@@ -342,7 +355,12 @@ class Mapper {
         LOG_DEBUG << "sfm: cannot register " << input_.images.at(id).name << ": " << why;
         failed.insert(id);
       }
+      if (!registered && options_.relative_registration) {
+        registered = RegisterByRelativePose(model, &failed_relative);
+        if (registered) failed.clear();
+      }
       if (!registered) return;
+      failed_relative.clear();
     }
   }
 
@@ -401,21 +419,154 @@ class Mapper {
     RefinePose(refine, camera, points2d, points3d, &pose);
 
     AddImage(model, image_id, pose);
+    const int added = AddVisibleObservations(model, image_id);
+    *why = std::to_string(inliers.size()) + " PnP inliers of " + std::to_string(object.size());
+    return added >= options_.min_registration_points / 2;
+  }
+
+  // Adds the observations of the reconstructed points that a registered photo sees within
+  // `max_error_px` (default: the reprojection threshold) and does not observe yet; returns
+  // how many.
+  int AddVisibleObservations(Reconstruction* model, int image_id, double max_error_px = 0) {
+    if (max_error_px <= 0) max_error_px = options_.max_reprojection_error_px;
+    const MapperImage& image = input_.images.at(image_id);
+    const Camera& camera = model->cameras.at(image.camera_id);
+    const Rigid3d pose = model->images.at(image_id).cam_from_world;
+    const std::vector<int>& tracks = track_of_.at(image_id);
     int added = 0;
     for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
-      if (tracks[kp] < 0) continue;
+      if (tracks[kp] < 0 || model->images.at(image_id).point_for_keypoint[kp] != kInvalidId)
+        continue;
       auto it = track_point_.find(tracks[kp]);
       if (it == track_point_.end()) continue;
-      Point3D& point = model->points.at(it->second);
+      const Point3D& point = model->points.at(it->second);
       if (!HasPositiveDepth(pose, point.xyz_in_world)) continue;
       const auto pixel = camera.ImgFromCam(pose * point.xyz_in_world);
-      if (!pixel || (*pixel - image.keypoints[kp]).norm() > options_.max_reprojection_error_px)
-        continue;
+      if (!pixel || (*pixel - image.keypoints[kp]).norm() > max_error_px) continue;
       model->AddObservation(it->second, {image_id, kp});
       ++added;
     }
-    *why = std::to_string(inliers.size()) + " PnP inliers of " + std::to_string(object.size());
-    return added >= options_.min_registration_points / 2;
+    return added;
+  }
+
+  // Registration by relative pose (relative_registration.h) when PnP can place no photo: the
+  // unregistered photo with most verified matches to registered photos first. Photos that
+  // fail go into `failed`.
+  bool RegisterByRelativePose(Reconstruction* model, std::set<int>* failed) {
+    std::map<int, std::vector<const MapperPair*>> links;  // Photo -> pairs with the model.
+    for (const MapperPair& pair : input_.pairs) {
+      if (!pair.epipolar ||
+          static_cast<int>(pair.matches.size()) < options_.relative.min_pair_inliers) {
+        continue;
+      }
+      const bool in1 = model->images.count(pair.image1) > 0;
+      const bool in2 = model->images.count(pair.image2) > 0;
+      if (in1 == in2) continue;
+      const int fresh = in1 ? pair.image2 : pair.image1;
+      if (!failed->count(fresh)) links[fresh].push_back(&pair);
+    }
+    std::vector<std::pair<std::size_t, int>> ranked;  // (matches, photo)
+    for (const auto& [id, pairs] : links) {
+      std::size_t matches = 0;
+      for (const MapperPair* pair : pairs) matches += pair->matches.size();
+      ranked.emplace_back(matches, id);
+    }
+    std::stable_sort(ranked.begin(), ranked.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (const auto& [matches, id] : ranked) {
+      cancel_.ThrowIfCanceled();
+      const MapperImage& image = input_.images.at(id);
+      if (!model->cameras.count(image.camera_id)) {
+        model->cameras[image.camera_id] = cameras_.at(image.camera_id);
+      }
+      std::string how;
+      const std::optional<Rigid3d> pose = RelativePoseOf(*model, id, links.at(id), &how);
+      if (!pose) {
+        LOG_DEBUG << "sfm: cannot register " << image.name << " by relative pose: " << how;
+        failed->insert(id);
+        continue;
+      }
+      AddImage(model, id, *pose);
+      // The pose from two views is only as good as they make it (relative_registration.h):
+      // the points that agreed on the scale may reproject well beyond the usual threshold.
+      // Their observations tie the photo to the model in the local adjustment (the pair's own
+      // points only to its neighbour, up to two-view ambiguities), which also filters them.
+      const double loose_px = model->cameras.at(image.camera_id).focal *
+                              std::tan(options_.relative.max_scale_angle_deg * M_PI / 180.0);
+      const int added =
+          AddVisibleObservations(model, id, std::max(loose_px, options_.max_reprojection_error_px));
+      if (!used_.count(id)) progress_.Advance();
+      if (summary_ != nullptr) ++summary_->num_relative_registrations;
+      AfterRegistration(model, id);
+      const int more = AddVisibleObservations(model, id);
+      Note("registered " + image.name + " by relative pose " + how + "; it sees " +
+           std::to_string(added) + " points, " + std::to_string(more) +
+           " more after the local adjustment");
+      return true;
+    }
+    return false;
+  }
+
+  // The pose of unregistered photo `id` from its `pairs` with registered photos: the scale from
+  // the points it sees, else the rays of two or more neighbours.
+  std::optional<Rigid3d> RelativePoseOf(const Reconstruction& model,
+                                        int id,
+                                        const std::vector<const MapperPair*>& pairs,
+                                        std::string* how) {
+    const MapperImage& image = input_.images.at(id);
+    const Camera& camera = model.cameras.at(image.camera_id);
+    std::vector<std::pair<NeighbourPose, int>> neighbours;  // With the neighbour's id.
+    for (const MapperPair* pair : pairs) {
+      const bool registered_first = pair->image1 != id;
+      const int other = registered_first ? pair->image1 : pair->image2;
+      const RegisteredImage& neighbour = model.images.at(other);
+      const Camera& other_camera = model.cameras.at(neighbour.camera_id);
+      std::vector<Eigen::Vector2d> a, b;
+      for (const FeatureMatch& m : pair->matches) {
+        const auto x =
+            Normalized(other_camera, neighbour.keypoints[registered_first ? m.index1 : m.index2]);
+        const auto y = Normalized(camera, image.keypoints[registered_first ? m.index2 : m.index1]);
+        if (!x || !y) continue;
+        a.push_back(*x);
+        b.push_back(*y);
+      }
+      const double focal = 0.5 * (camera.focal + other_camera.focal);
+      if (auto relative = EstimateRelativePose(a, b, focal, options_.relative)) {
+        neighbours.push_back({{neighbour.cam_from_world, *relative}, other});
+      }
+    }
+    std::stable_sort(neighbours.begin(), neighbours.end(), [](const auto& a, const auto& b) {
+      return a.first.relative.num_inliers > b.first.relative.num_inliers;
+    });
+    std::vector<Eigen::Vector3d> points;
+    std::vector<Eigen::Vector2d> observations;
+    const std::vector<int>& tracks = track_of_.at(id);
+    for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
+      auto it = tracks[kp] < 0 ? track_point_.end() : track_point_.find(tracks[kp]);
+      if (it == track_point_.end()) continue;
+      const auto n = Normalized(camera, image.keypoints[kp]);
+      if (!n) continue;
+      points.push_back(model.points.at(it->second).xyz_in_world);
+      observations.push_back(*n);
+    }
+    for (const auto& [neighbour, other] : neighbours) {
+      const auto r = RegisterFromPoints(neighbour, points, observations, options_.relative);
+      if (!r) continue;
+      *how = "from " + input_.images.at(other).name + " (" +
+             std::to_string(neighbour.relative.num_inliers) + " inliers), scale from " +
+             std::to_string(r->num_points) + " of " + std::to_string(points.size()) + " points";
+      return r->cam_from_world;
+    }
+    std::vector<NeighbourPose> rays;
+    for (const auto& [neighbour, other] : neighbours) rays.push_back(neighbour);
+    if (const auto r = RegisterFromRays(rays, options_.relative)) {
+      *how = "from the rays of " + std::to_string(r->num_rays) + " neighbours";
+      return r->cam_from_world;
+    }
+    *how = std::to_string(neighbours.size()) + " of " + std::to_string(pairs.size()) +
+           " pairs with a relative pose, " + std::to_string(points.size()) +
+           " points seen: no scale";
+    return std::nullopt;
   }
 
   void AfterRegistration(Reconstruction* model, int image_id) {
@@ -782,7 +933,8 @@ std::map<int, Camera> SearchFocal(const MapperInput& input,
     Progress quiet;
     Mapper mapper(input, trial_options, quiet, cancel, nullptr);
     mapper.SetInitialCameras(start);
-    const Reconstruction model = mapper.RunTrial(options.focal_search_images);
+    const Reconstruction model =
+        mapper.RunTrial(options.focal_search_images, options.focal_search_seeds);
     FocalTrial trial;
     trial.result = start;
     trial.images = static_cast<int>(model.images.size());
@@ -832,10 +984,11 @@ std::map<int, Camera> SearchFocal(const MapperInput& input,
     return chosen.result;
   };
 
-  const FocalTrial first = run(input.cameras);
-  if (usable(first)) {
-    const FocalTrial second = run(first.result);
-    if (usable(second) && agree(first, second)) return done(second, "converged");
+  FocalTrial previous = run(input.cameras);
+  for (int round = 1; round < options.focal_search_rounds && usable(previous); ++round) {
+    FocalTrial next = run(previous.result);
+    if (usable(next) && agree(previous, next)) return done(next, "converged");
+    previous = std::move(next);
   }
   std::vector<FocalTrial> trials;
   const int n = options.focal_search_hypotheses;
@@ -894,6 +1047,10 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
     m << "focal_search_images must be at least 3, got " << focal_search_images;
   } else if (!(focal_search_tolerance > 0 && focal_search_tolerance < 1)) {
     m << "focal_search_tolerance must be in (0, 1), got " << focal_search_tolerance;
+  } else if (focal_search_rounds < 2) {
+    m << "focal_search_rounds must be at least 2, got " << focal_search_rounds;
+  } else if (focal_search_seeds < 1) {
+    m << "focal_search_seeds must be at least 1, got " << focal_search_seeds;
   } else if (focal_search_hypotheses < 1) {
     m << "focal_search_hypotheses must be at least 1, got " << focal_search_hypotheses;
   } else if (!(focal_search_min_multiple > 0 &&
@@ -903,6 +1060,8 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
       << focal_search_min_multiple << " and " << focal_search_max_multiple;
   } else if (!(max_principal_point_shift > 0 && max_principal_point_shift <= 0.5)) {
     m << "max_principal_point_shift must be in (0, 0.5], got " << max_principal_point_shift;
+  } else if (std::string relative_error; !relative.Check(&relative_error)) {
+    m << "relative: " << relative_error;
   } else {
     return true;
   }

@@ -268,6 +268,8 @@ TEST(ReconstructIncrementally, FocalSearchMultiStart) {
   // A tolerance no two trials meet forces the multi-start over 0.5-5 x the longer side.
   IncrementalMapperOptions options;
   options.focal_search_tolerance = 1e-9;
+  // Two rounds of the fixed-point iteration: later rounds can reach its fixed point exactly.
+  options.focal_search_rounds = 2;
   const RingRun run = ReconstructRingWhoseAxesMeet(1000, options);
   ASSERT_EQ(run.models.size(), 1u);
   EXPECT_EQ(run.models.front().images.size(), 16u);
@@ -282,6 +284,56 @@ TEST(ReconstructIncrementally, FocalSearchMultiStart) {
   ASSERT_TRUE(run.summary.searched_focal.count(0));
   EXPECT_NEAR(run.summary.searched_focal.at(0), run.truth, 0.05 * run.truth);
   EXPECT_NEAR(run.models.front().cameras.at(0).focal, run.truth, 0.02 * run.truth);
+}
+
+// The first 8 temple photos: the pair ranked first as a seed is cut off from the others by a
+// wide gap, so a trial from it stays at two photos and cannot refine the focal. The trial
+// then moves on to the next seed (IncrementalMapperOptions::focal_search_seeds).
+RingRun ReconstructRingWithAnIsolatedSeed(int focal_search_seeds) {
+  SyntheticSceneOptions scene_options;
+  scene_options.num_cameras = 12;
+  scene_options.num_points = 3000;
+  scene_options.width = 640;
+  scene_options.height = 480;
+  scene_options.focal = 1536;
+  scene_options.camera_distance = 6.0;
+  scene_options.camera_height = 1.0;
+  scene_options.scene_radius = 0.8;
+  scene_options.target_jitter = 0.0;
+  scene_options.pixel_noise_stddev = 0.3;
+  scene_options.seed = 14;
+  const SyntheticScene scene = SynthesizeScene(scene_options);
+  MapperInput input = InputFromScene(scene, /*focal_guess=*/1.2 * 640);
+  FilterMatches(scene, &input, [](int i, int j, int point) {
+    const double facing = std::fmod(point * 137.5, 360.0);
+    auto sees = [&](int k) { return std::abs(std::remainder(30.0 * k - facing, 360.0)) <= 50; };
+    const bool cut_off = (i <= 1) != (j <= 1);  // Photos 0 and 1 see only each other.
+    return sees(i) && sees(j) && !cut_off;
+  });
+  for (MapperPair& pair : input.pairs) {
+    // Seeds are ranked by matches discounted by the homography's share: 0 + 1 first.
+    pair.num_inliers_H = pair.image1 == 0 && pair.image2 == 1 ? 0 : pair.num_inliers_F;
+  }
+  input.uncertain_focal_camera_ids = {0};
+  IncrementalMapperOptions options;
+  options.focal_search_seeds = focal_search_seeds;
+  RingRun run;
+  run.truth = scene_options.focal;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, FocalSearchMovesOnFromAnIsolatedSeed) {
+  const RingRun one_seed = ReconstructRingWithAnIsolatedSeed(1);
+  EXPECT_FALSE(one_seed.summary.searched_focal.count(0))
+      << "every trial stays at the isolated pair: no focal";
+  const RingRun run = ReconstructRingWithAnIsolatedSeed(3);
+  ASSERT_TRUE(run.summary.searched_focal.count(0));
+  EXPECT_NEAR(run.summary.searched_focal.at(0), run.truth, 0.05 * run.truth);
+  ASSERT_FALSE(run.models.empty());
+  EXPECT_EQ(run.models.front().images.size(), 10u);
+  EXPECT_NEAR(run.models.front().cameras.at(0).focal, run.truth, 0.01 * run.truth);
 }
 
 TEST(ReconstructIncrementally, NoFocalSearchWithoutUncertainCameras) {
@@ -325,8 +377,12 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
   }
   Progress progress;
   MapperSummary summary;
-  const auto models = ReconstructIncrementally(input, IncrementalMapperOptions(), progress,
-                                               CancelToken(), &summary);
+  // Registration by relative pose would cross the weak link from photo 2 (the test
+  // WideGapsNeedRelativePoses): this test is about the later model's reach.
+  IncrementalMapperOptions no_relative;
+  no_relative.relative_registration = false;
+  const auto models =
+      ReconstructIncrementally(input, no_relative, progress, CancelToken(), &summary);
   ASSERT_EQ(models.size(), 2u);
   std::set<int> larger, smaller;
   for (const auto& [id, image] : models[0].images) larger.insert(id);
@@ -349,6 +405,63 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
     tracks += seen >= 2;
   }
   EXPECT_EQ(models[0].points.size(), tracks);
+}
+
+// A ring of 8 photos 45 deg apart (templeSparseRing every second photo): each point faces one
+// way and is seen from the photos within 50 deg of it, so neighbours share about 60 matches
+// but a photo sees only a handful of the points its registered neighbour triangulated: fewer
+// than PnP needs (20). Registration by relative pose places each photo from its neighbour's
+// two-view geometry with the scale from those few points.
+struct WideRingRun {
+  SyntheticScene scene;
+  std::vector<Reconstruction> models;
+  MapperSummary summary;
+};
+
+WideRingRun ReconstructWideRing(bool relative_registration) {
+  SyntheticSceneOptions scene_options;
+  scene_options.num_cameras = 8;
+  scene_options.num_points = 400;
+  scene_options.width = 640;
+  scene_options.height = 480;
+  scene_options.focal = 700;
+  scene_options.camera_distance = 6.0;
+  scene_options.camera_height = 1.5;
+  scene_options.scene_radius = 1.5;
+  scene_options.pixel_noise_stddev = 0.3;
+  scene_options.seed = 5;
+  WideRingRun run;
+  run.scene = SynthesizeScene(scene_options);
+  MapperInput input = InputFromScene(run.scene, scene_options.focal);
+  FilterMatches(run.scene, &input, [](int i, int j, int point) {
+    const double facing = std::fmod(point * 137.5, 360.0);
+    auto sees = [&](int k) { return std::abs(std::remainder(45.0 * k - facing, 360.0)) <= 50; };
+    return sees(i) && sees(j);
+  });
+  IncrementalMapperOptions options;
+  options.relative_registration = relative_registration;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
+  const WideRingRun without = ReconstructWideRing(false);
+  ASSERT_FALSE(without.models.empty());
+  EXPECT_LE(without.models.front().images.size(), 3u) << "PnP alone stops at the first gap";
+
+  const WideRingRun with = ReconstructWideRing(true);
+  ASSERT_EQ(with.models.size(), 1u);
+  EXPECT_EQ(with.models.front().images.size(), 8u);
+  int relative = 0;
+  for (const std::string& line : with.summary.log)
+    relative += line.find("by relative pose") != std::string::npos;
+  EXPECT_GE(relative, 5);
+  EXPECT_EQ(with.summary.num_relative_registrations, relative);
+  EXPECT_EQ(without.summary.num_relative_registrations, 0);
+  const Errors errors = Compare(with.models.front(), with.scene);
+  EXPECT_LT(errors.max_rotation_deg, 0.5);
+  EXPECT_LT(errors.max_center, 0.01 * 6.0);
 }
 
 TEST(ReconstructIncrementally, PureRotationCannotInitialise) {

@@ -5,6 +5,7 @@
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
 #include "core/pipeline/stages/pairs_stage.h"
+#include "core/pipeline/stages/weak_pairs.h"
 #include "core/util/logging.h"
 #include "core/util/parallel.h"
 
@@ -165,17 +166,19 @@ Status ReadPairFeatures(const Workspace& workspace,
   return Status::Ok();
 }
 
-// One pair: putative matches by descriptor, the two-view geometry and its inliers, then guided
-// matching along the epipolar lines when the pair has an F.
-VerifiedPair VerifyPair(const ImagePair& pair,
-                        const PairFeatures& in,
-                        const TwoViewGeometryOptions& geometry,
-                        const CancelToken& cancel) {
+// Putative matches at Lowe's ratio `max_ratio` and the two-view geometry of their inliers.
+VerifiedPair VerifyPutative(const ImagePair& pair,
+                            const PairFeatures& in,
+                            const TwoViewGeometryOptions& geometry,
+                            double max_ratio,
+                            const CancelToken& cancel) {
   VerifiedPair out;
   out.matches.image1 = pair.image1;
   out.matches.image2 = pair.image2;
-  const std::vector<FeatureMatch> putative = MatchDescriptors(
-      in.descriptors.at(pair.image1), in.descriptors.at(pair.image2), MatchingOptions());
+  MatchingOptions matching;
+  matching.max_ratio = max_ratio;
+  const std::vector<FeatureMatch> putative =
+      MatchDescriptors(in.descriptors.at(pair.image1), in.descriptors.at(pair.image2), matching);
   out.num_putative = static_cast<int>(putative.size());
   const FeatureSet& f1 = in.features.at(pair.image1);
   const FeatureSet& f2 = in.features.at(pair.image2);
@@ -199,12 +202,58 @@ VerifiedPair VerifyPair(const ImagePair& pair,
       if (mask[i]) out.matches.matches.push_back(putative[i]);
     }
   }
-  if (report.success && report.type == TwoViewModelType::kFundamental) {
+  return out;
+}
+
+// One pair: putative matches by descriptor at Lowe's ratio `max_ratio`, the two-view geometry
+// and its inliers, then guided matching along the epipolar lines when the pair has an F.
+VerifiedPair VerifyPair(const ImagePair& pair,
+                        const PairFeatures& in,
+                        const TwoViewGeometryOptions& geometry,
+                        double max_ratio,
+                        const CancelToken& cancel) {
+  VerifiedPair out = VerifyPutative(pair, in, geometry, max_ratio, cancel);
+  if (out.type == TwoViewModelType::kFundamental && !out.matches.matches.empty()) {
     out.num_guided = AddGuidedMatches(in.descriptors.at(pair.image1),
                                       in.descriptors.at(pair.image2), in.keypoints.at(pair.image1),
-                                      in.keypoints.at(pair.image2), report.F, &out.matches);
+                                      in.keypoints.at(pair.image2), out.F, &out.matches);
   }
   return out;
+}
+
+// Verifies the weak pairs PairsToRetry chooses again at the looser ratio (weak_pairs.h),
+// keeping the retries that pass KeepRetry.
+void RetryWeakPairs(const std::vector<ImagePair>& chosen,
+                    const PairFeatures& features,
+                    const TwoViewGeometryOptions& geometry,
+                    StageContext& context,
+                    std::vector<VerifiedPair>* verified) {
+  const WeakPairOptions options;
+  std::vector<PairStrength> strengths;
+  for (const VerifiedPair& p : *verified) {
+    strengths.push_back({p.matches.image1, p.matches.image2,
+                         std::max(p.num_inliers_F, p.num_inliers_H), !p.matches.matches.empty()});
+  }
+  const std::vector<std::size_t> retry = PairsToRetry(strengths, options);
+  ParallelFor(
+      0, retry.size(),
+      [&](std::size_t k) {
+        context.cancel.ThrowIfCanceled();
+        VerifiedPair again =
+            VerifyPair(chosen[retry[k]], features, geometry, options.retry_ratio, context.cancel);
+        if (!again.matches.matches.empty() &&
+            KeepRetry(again.type == TwoViewModelType::kFundamental, again.num_inliers_F,
+                      again.num_putative, options)) {
+          again.retried = true;
+          (*verified)[retry[k]] = std::move(again);
+        }
+      },
+      context.options.num_threads);
+  int kept = 0;
+  for (std::size_t k : retry) kept += (*verified)[k].retried;
+  LOG_INFO << "matching: " << retry.size() << " weak pairs of photos with fewer than "
+           << options.min_strong_pairs << " strong pairs verified again at Lowe's ratio "
+           << options.retry_ratio << "; " << kept << " kept";
 }
 
 // The verified pairs sorted out: those with matches (kept), one summary.json record per pair,
@@ -214,6 +263,7 @@ struct MatchingTally {
   nlohmann::json summary_pairs = nlohmann::json::array();
   int num_f = 0, num_h = 0;
   std::size_t inliers = 0, guided = 0;
+  int retried = 0;
 };
 
 MatchingTally Tally(std::vector<VerifiedPair>* verified) {
@@ -225,6 +275,7 @@ MatchingTally Tally(std::vector<VerifiedPair>* verified) {
          {"model", TwoViewModelTypeName(p.type)},
          {"putative", p.num_putative},
          {"guided", p.num_guided},
+         {"retried", p.retried},
          {"inliers_F", p.num_inliers_F},
          {"inliers_H", p.num_inliers_H},
          {"gric_F", std::isfinite(p.gric_F) ? nlohmann::json(p.gric_F) : nlohmann::json()},
@@ -232,6 +283,7 @@ MatchingTally Tally(std::vector<VerifiedPair>* verified) {
     if (p.type == TwoViewModelType::kFundamental) ++tally.num_f;
     if (p.type == TwoViewModelType::kHomography) ++tally.num_h;
     tally.guided += p.num_guided;
+    tally.retried += p.retried;
     if (!p.matches.matches.empty()) {
       tally.inliers += p.matches.matches.size();
       tally.usable.push_back(std::move(p));
@@ -281,10 +333,12 @@ StageResult MatchingStage::Run(StageContext& context) const {
       0, chosen->size(),
       [&](std::size_t k) {
         context.cancel.ThrowIfCanceled();
-        verified[k] = VerifyPair((*chosen)[k], features, geometry, context.cancel);
+        verified[k] = VerifyPair((*chosen)[k], features, geometry, MatchingOptions().max_ratio,
+                                 context.cancel);
         context.progress.Advance();
       },
       context.options.num_threads);
+  RetryWeakPairs(*chosen, features, geometry, context, &verified);
 
   const MatchingTally tally = Tally(&verified);
   if (Status s =
@@ -295,7 +349,8 @@ StageResult MatchingStage::Run(StageContext& context) const {
   LOG_INFO << "matching: " << verified.size() << " pairs, " << tally.num_f
            << " with epipolar geometry, " << tally.num_h << " planar or rotation-only, "
            << tally.inliers << " inlier matches (" << tally.guided
-           << " of them from guided matching)";
+           << " of them from guided matching); " << tally.retried
+           << " weak pairs kept from a second verification at a looser ratio test";
   if (tally.usable.empty()) {
     return StageResult::Degenerate("no pair of photos could be matched: do the photos overlap?");
   }
@@ -303,7 +358,8 @@ StageResult MatchingStage::Run(StageContext& context) const {
                                {"fundamental", tally.num_f},
                                {"homography", tally.num_h},
                                {"inlier_matches", tally.inliers},
-                               {"guided_matches", tally.guided}});
+                               {"guided_matches", tally.guided},
+                               {"retried_pairs", tally.retried}});
 }
 
 Result<std::vector<VerifiedPair>> ReadVerifiedPairs(const Workspace& workspace) {

@@ -33,6 +33,8 @@ struct VerifiedPair {
   // Matches added by guided matching along F's epipolar lines (included in `matches`; not
   // stored in pairs.bin).
   int num_guided = 0;
+  // Verified again at a looser ratio test (few inliers at the default; not stored either).
+  bool retried = false;
 };
 
 class MatchingStage : public Stage {

@@ -366,6 +366,7 @@ StageResult SparseStage::Run(StageContext& context) const {
                                {"registered_in_other_models",
                                 summary.num_registered - static_cast<int>(best.images.size())},
                                {"photos", input.images.size()},
+                               {"registered_by_relative_pose", summary.num_relative_registrations},
                                {"points", best.points.size()},
                                {"mean_reprojection_error_px", best.MeanReprojectionError()},
                                {"cameras", calibration}});

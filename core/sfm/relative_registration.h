@@ -1,0 +1,95 @@
+// Registration of a photo from its two-view geometry with photos already registered, for when
+// too few of its keypoints see reconstructed points for PnP (photos far apart: templeSparseRing
+// every second photo, 45 deg apart, shares a few dozen matches with each neighbour and a
+// handful of tracks with the model).
+//
+// A pair's essential matrix gives the new photo's rotation and the DIRECTION of its centre
+// from the registered photo's; the distance along that ray (the baseline's scale) is unknown.
+// It comes from either
+//  - the reconstructed points the new photo sees (even far fewer than PnP needs): each gives
+//    a linear equation in the scale, the one most points agree with is kept (a 1-D RANSAC over
+//    the points' own solutions), then refined by least squares over those that agree; or
+//  - two or more registered neighbours: the rays from their centres meet at the new centre
+//    (least-squares intersection of lines), and the rotation is the chordal mean of theirs.
+// Points take precedence; rays are used only when they meet at a clear angle, and the centre
+// must lie in front of (not behind) every ray origin.
+#ifndef RECONDUIT_CORE_SFM_RELATIVE_REGISTRATION_H_
+#define RECONDUIT_CORE_SFM_RELATIVE_REGISTRATION_H_
+
+#include "core/geometry/rigid3.h"
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace reconduit {
+
+struct RelativeRegistrationOptions {
+  // A neighbour's pair takes part with at least this many essential-matrix inliers in front
+  // of both cameras. [8, ...]
+  int min_pair_inliers = 30;
+  // Essential-matrix RANSAC threshold, pixels. (0, ...)
+  double max_epipolar_error_px = 1.5;
+  // A reconstructed point agrees with a scale when its ray and the observed one are within
+  // this angle, degrees: the rotation of a pair is only as good as two views make it (half a
+  // degree is common at 45 deg baselines, 13 px at templeSparseRing's focal), and the error
+  // moves every point alike, so a pixel threshold as tight as PnP's would refuse the right
+  // scale. Random mismatches rarely fall this close. (0, 90)
+  double max_scale_angle_deg = 1.0;
+  // The scale from points needs this many agreeing points. [2, ...]
+  int min_scale_points = 5;
+  // Rays from two neighbours must meet at least at this angle, degrees. (0, 90)
+  double min_ray_angle_deg = 5.0;
+  // ... and every ray must pass the intersection within this angle, seen from its origin, and
+  // the neighbours' rotations of the new photo agree within it, degrees. (0, 90)
+  double max_ray_disagreement_deg = 3.0;
+
+  bool Check(std::string* error) const;
+};
+
+// The pose of a new photo relative to a registered one: x_new = R x_registered + t, |t| = 1.
+struct PairPose {
+  Rigid3d new_from_registered;
+  int num_inliers = 0;  // Essential-matrix inliers in front of both cameras.
+};
+
+// The relative pose from normalised (undistorted, focal 1) correspondences, registered photo
+// first; nullopt when fewer than options.min_pair_inliers inliers are in front of both cameras.
+// `focal_px` converts the pixel threshold.
+std::optional<PairPose> EstimateRelativePose(const std::vector<Eigen::Vector2d>& registered,
+                                             const std::vector<Eigen::Vector2d>& fresh,
+                                             double focal_px,
+                                             const RelativeRegistrationOptions& options);
+
+// A registered neighbour and the new photo's pose relative to it.
+struct NeighbourPose {
+  Rigid3d registered_cam_from_world;
+  PairPose relative;
+};
+
+struct RelativeRegistration {
+  Rigid3d cam_from_world;
+  enum class Method { kPoints, kRays } method = Method::kPoints;
+  int num_points = 0;  // Points agreeing with the scale (kPoints).
+  int num_rays = 0;    // Neighbours whose rays were intersected (kRays).
+};
+
+// The new photo's pose from one neighbour and the reconstructed `points` it sees at the
+// normalised `observations` (the scale from points); nullopt when fewer than
+// options.min_scale_points agree on a positive scale.
+std::optional<RelativeRegistration> RegisterFromPoints(
+    const NeighbourPose& neighbour,
+    const std::vector<Eigen::Vector3d>& points,
+    const std::vector<Eigen::Vector2d>& observations,
+    const RelativeRegistrationOptions& options);
+
+// The new photo's pose from two or more neighbours' rays; nullopt with fewer than two, when no
+// two rays meet at options.min_ray_angle_deg, or when the centre lies behind a ray's origin.
+std::optional<RelativeRegistration> RegisterFromRays(const std::vector<NeighbourPose>& neighbours,
+                                                     const RelativeRegistrationOptions& options);
+
+}  // namespace reconduit
+
+#endif  // RECONDUIT_CORE_SFM_RELATIVE_REGISTRATION_H_

@@ -1,0 +1,188 @@
+#include "core/sfm/relative_registration.h"
+
+#include "core/scene/synthetic.h"
+
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+namespace reconduit {
+namespace {
+
+// 8 photos on a ring 45 deg apart (templeSparseRing every second photo), f = 800 px, 0.5 px
+// noise, 5 % outliers.
+SyntheticScene WideRing(int num_cameras = 8,
+                        SyntheticCameraLayout layout = SyntheticCameraLayout::kRing) {
+  SyntheticSceneOptions options;
+  options.num_cameras = num_cameras;
+  options.layout = layout;
+  options.num_points = 800;
+  options.focal = 800;
+  options.width = 1024;
+  options.height = 768;
+  options.pixel_noise_stddev = 0.5;
+  options.outlier_fraction = 0.05;
+  options.seed = 21;
+  return SynthesizeScene(options);
+}
+
+Eigen::Vector2d Normalized(const SyntheticImage& image, const Eigen::Vector2d& pixel) {
+  return image.camera.CamFromImg(pixel)->head<2>();
+}
+
+// The pose of `fresh` relative to `registered` from their correspondences.
+std::optional<PairPose> PairPoseOf(const SyntheticScene& scene, int registered, int fresh) {
+  std::vector<Eigen::Vector2d> a, b;
+  for (const SyntheticCorrespondence& c : FindCorrespondences(scene, registered, fresh)) {
+    a.push_back(Normalized(scene.images[registered], c.pixel1));
+    b.push_back(Normalized(scene.images[fresh], c.pixel2));
+  }
+  return EstimateRelativePose(a, b, 800, RelativeRegistrationOptions());
+}
+
+double RotationErrorDeg(const Rigid3d& a, const Rigid3d& b) {
+  return Eigen::AngleAxisd(a.rotation * b.rotation.inverse()).angle() * 180.0 / M_PI;
+}
+
+double CentreError(const Rigid3d& a, const Rigid3d& b) {
+  return (a.CenterInWorld() - b.CenterInWorld()).norm();
+}
+
+TEST(RelativeRegistrationOptions, DefaultsAreValid) {
+  std::string error;
+  EXPECT_TRUE(RelativeRegistrationOptions().Check(&error)) << error;
+  RelativeRegistrationOptions bad;
+  bad.min_scale_points = 1;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("min_scale_points"), std::string::npos);
+}
+
+TEST(EstimateRelativePose, RecoversRotationAndBaselineDirection) {
+  const SyntheticScene scene = WideRing();
+  const auto pose = PairPoseOf(scene, 0, 1);
+  ASSERT_TRUE(pose.has_value());
+  const Rigid3d truth = RelativePose(scene, 0, 1);
+  EXPECT_LT(RotationErrorDeg(pose->new_from_registered, truth), 0.2);
+  const double cosine = pose->new_from_registered.translation.dot(truth.translation.normalized());
+  EXPECT_GT(cosine, std::cos(1.0 * M_PI / 180.0));
+  EXPECT_NEAR(pose->new_from_registered.translation.norm(), 1.0, 1e-9);
+}
+
+TEST(EstimateRelativePose, TooFewMatches) {
+  const SyntheticScene scene = WideRing();
+  std::vector<Eigen::Vector2d> a, b;
+  for (const SyntheticCorrespondence& c : FindCorrespondences(scene, 0, 1)) {
+    if (a.size() == 20) break;
+    a.push_back(Normalized(scene.images[0], c.pixel1));
+    b.push_back(Normalized(scene.images[1], c.pixel2));
+  }
+  EXPECT_FALSE(EstimateRelativePose(a, b, 800, RelativeRegistrationOptions()).has_value());
+}
+
+// The scale from a handful of points (8, a few of them wrong: fewer than PnP's 20).
+TEST(RegisterFromPoints, ScaleFromAFewPointsWithOutliers) {
+  const SyntheticScene scene = WideRing();
+  const auto pose = PairPoseOf(scene, 0, 1);
+  ASSERT_TRUE(pose.has_value());
+  // The neighbour's pose in a world scaled by 3 and shifted, as a model's gauge would be.
+  const double s = 3.0;
+  const Eigen::Vector3d shift(1, -2, 0.5);
+  auto to_model = [&](const Eigen::Vector3d& x) { return Eigen::Vector3d(s * x + shift); };
+  // y_model = s (R x + t) = R x_model + (s t - R shift).
+  auto model_pose = [&](const Rigid3d& cam_from_world) {
+    return Rigid3d(cam_from_world.rotation,
+                   s * cam_from_world.translation - cam_from_world.rotation * shift);
+  };
+  const NeighbourPose neighbour{model_pose(scene.images[0].cam_from_world), *pose};
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observations;
+  for (const SyntheticObservation& o : scene.images[1].observations) {
+    if (o.point_index < 0 || points.size() == 8) continue;
+    Eigen::Vector3d x = to_model(scene.points3D[o.point_index]);
+    if (points.size() < 2) x += Eigen::Vector3d(0.7, -0.4, 0.3) * s;  // Two wrong points.
+    points.push_back(x);
+    observations.push_back(Normalized(scene.images[1], o.pixel));
+  }
+  RelativeRegistrationOptions options;
+  const auto registration = RegisterFromPoints(neighbour, points, observations, options);
+  ASSERT_TRUE(registration.has_value());
+  EXPECT_EQ(registration->num_points, 6);
+  const Rigid3d truth = model_pose(scene.images[1].cam_from_world);
+  EXPECT_LT(RotationErrorDeg(registration->cam_from_world, truth), 0.2);
+  const double baseline =
+      CentreError(scene.images[0].cam_from_world, scene.images[1].cam_from_world);
+  EXPECT_LT(CentreError(registration->cam_from_world, truth), 0.02 * s * baseline);
+
+  options.min_scale_points = 7;  // Only 6 agree.
+  EXPECT_FALSE(RegisterFromPoints(neighbour, points, observations, options).has_value());
+}
+
+// Points that only agree on a negative scale (the photo behind its neighbour) are refused.
+TEST(RegisterFromPoints, RefusesANegativeScale) {
+  const SyntheticScene scene = WideRing();
+  auto pose = PairPoseOf(scene, 0, 1);
+  ASSERT_TRUE(pose.has_value());
+  pose->new_from_registered.translation = -pose->new_from_registered.translation;
+  const NeighbourPose neighbour{scene.images[0].cam_from_world, *pose};
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Eigen::Vector2d> observations;
+  for (const SyntheticObservation& o : scene.images[1].observations) {
+    if (o.point_index < 0) continue;
+    points.push_back(scene.points3D[o.point_index]);
+    observations.push_back(Normalized(scene.images[1], o.pixel));
+  }
+  EXPECT_FALSE(RegisterFromPoints(neighbour, points, observations, RelativeRegistrationOptions())
+                   .has_value());
+}
+
+// Photo 1 from its neighbours 0 and 2 on the ring (45 deg either side), without any point.
+TEST(RegisterFromRays, TwoNeighboursOnARing) {
+  const SyntheticScene scene = WideRing();
+  std::vector<NeighbourPose> neighbours;
+  for (int k : {0, 2}) {
+    const auto pose = PairPoseOf(scene, k, 1);
+    ASSERT_TRUE(pose.has_value());
+    neighbours.push_back({scene.images[k].cam_from_world, *pose});
+  }
+  const auto registration = RegisterFromRays(neighbours, RelativeRegistrationOptions());
+  ASSERT_TRUE(registration.has_value());
+  EXPECT_EQ(registration->num_rays, 2);
+  // Each pair's rotation is only as good as two views make it (0.14 and 0.68 deg here, at the
+  // least-squares optimum of the Sampson distances); bundle adjustment refines it afterwards.
+  const Rigid3d& truth = scene.images[1].cam_from_world;
+  EXPECT_LT(RotationErrorDeg(registration->cam_from_world, truth), 0.6);
+  const double baseline = CentreError(scene.images[0].cam_from_world, truth);
+  EXPECT_LT(CentreError(registration->cam_from_world, truth), 0.05 * baseline);
+  EXPECT_FALSE(RegisterFromRays({neighbours[0]}, RelativeRegistrationOptions()).has_value())
+      << "one ray has no intersection";
+}
+
+// Degenerate: cameras on a line; the rays from the two neighbours are the same line.
+TEST(RegisterFromRays, CollinearCentresHaveNoIntersection) {
+  const SyntheticScene scene = WideRing(3, SyntheticCameraLayout::kLine);
+  std::vector<NeighbourPose> neighbours;
+  for (int k : {0, 2}) {
+    const auto pose = PairPoseOf(scene, k, 1);
+    ASSERT_TRUE(pose.has_value());
+    neighbours.push_back({scene.images[k].cam_from_world, *pose});
+  }
+  EXPECT_FALSE(RegisterFromRays(neighbours, RelativeRegistrationOptions()).has_value());
+}
+
+// A wrong relative pose (a neighbour's baseline direction turned by 20 deg) is caught by the
+// rays' disagreement instead of giving a pose.
+TEST(RegisterFromRays, DisagreeingNeighboursAreRefused) {
+  const SyntheticScene scene = WideRing();
+  std::vector<NeighbourPose> neighbours;
+  for (int k : {0, 2, 3}) {
+    const auto pose = PairPoseOf(scene, k, 1);
+    ASSERT_TRUE(pose.has_value());
+    neighbours.push_back({scene.images[k].cam_from_world, *pose});
+  }
+  ASSERT_TRUE(RegisterFromRays(neighbours, RelativeRegistrationOptions()).has_value());
+  Eigen::Vector3d& t = neighbours[2].relative.new_from_registered.translation;
+  t = Eigen::AngleAxisd(20.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()) * t;
+  EXPECT_FALSE(RegisterFromRays(neighbours, RelativeRegistrationOptions()).has_value());
+}
+
+}  // namespace
+}  // namespace reconduit
