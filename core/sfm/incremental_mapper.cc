@@ -2,6 +2,7 @@
 
 #include "core/estimators/triangulation.h"
 #include "core/sfm/bundle_adjustment.h"
+#include "core/sfm/model_merger.h"
 #include "core/sfm/relative_registration.h"
 #include "core/util/logging.h"
 #include "core/util/timer.h"
@@ -56,8 +57,7 @@ class Mapper {
   }
 
   std::vector<Reconstruction> Run() {
-    std::vector<Reconstruction> models;
-    std::vector<std::map<int, IntrinsicsStddev>> stddevs;  // Of each model's cameras.
+    std::vector<GrownModel> grown;
     progress_.Restart(input_.images.size(), "registering photos");
     while (true) {
       cancel_.ThrowIfCanceled();
@@ -72,13 +72,22 @@ class Mapper {
       Finish(&model);
       for (const auto& [id, image] : model.images) used_.insert(id);
       if (static_cast<int>(model.images.size()) >= options_.min_model_images) {
-        Note("model " + std::to_string(models.size() + 1) + ": " +
+        Note("model " + std::to_string(grown.size() + 1) + ": " +
              std::to_string(model.images.size()) + " photos, " +
              std::to_string(model.points.size()) + " points, mean reprojection error " +
              std::to_string(model.MeanReprojectionError()) + " px");
-        models.push_back(std::move(model));
-        stddevs.push_back(final_stddev_);
+        grown.push_back({std::move(model), final_stddev_, init_image1_, init_image2_});
       }
+    }
+    if (options_.merge_models) MergeAll(&grown);
+    if (options_.reregister) {
+      for (GrownModel& g : grown) Reregister(&g);
+    }
+    std::vector<Reconstruction> models;
+    std::vector<std::map<int, IntrinsicsStddev>> stddevs;  // Of each model's cameras.
+    for (GrownModel& g : grown) {
+      models.push_back(std::move(g.model));
+      stddevs.push_back(std::move(g.stddev));
     }
     const auto larger = [](const Reconstruction& a, const Reconstruction& b) {
       return a.images.size() > b.images.size();
@@ -107,6 +116,15 @@ class Mapper {
     }
     return models;
   }
+
+  // A model as grown, with what later steps need to adjust it again.
+  struct GrownModel {
+    Reconstruction model;
+    std::map<int, IntrinsicsStddev> stddev;  // From its last final adjustment.
+    int init_image1 = kInvalidId;            // The gauge of its adjustments.
+    int init_image2 = kInvalidId;
+    bool merged = false;  // Another model was merged into it since its final adjustment.
+  };
 
   // Replaces the initial intrinsics of the input (a focal hypothesis).
   void SetInitialCameras(const std::map<int, Camera>& cameras) { cameras_ = cameras; }
@@ -171,6 +189,85 @@ class Mapper {
       kept.push_back(std::move(model));
     }
     *models = std::move(kept);
+  }
+
+  // Merges the models that share photos or tracks (model_merger.h), each into the largest that
+  // takes it, until no merge succeeds.
+  void MergeAll(std::vector<GrownModel>* grown) {
+    std::stable_sort(grown->begin(), grown->end(), [](const GrownModel& a, const GrownModel& b) {
+      return a.model.images.size() > b.model.images.size();
+    });
+    ModelMergerOptions merge = options_.merge;
+    merge.max_reprojection_error_px = options_.max_reprojection_error_px;
+    int merges = 0, refusals = 0;
+    for (std::size_t i = 0; i < grown->size(); ++i) {
+      for (std::size_t j = i + 1; j < grown->size();) {
+        cancel_.ThrowIfCanceled();
+        GrownModel& into = (*grown)[i];
+        init_image1_ = into.init_image1;
+        init_image2_ = into.init_image2;
+        const BundleAdjustmentOptions ba = GlobalBundleOptions(into.model, /*final=*/false);
+        const MergeSummary merged =
+            MergeModels((*grown)[j].model, &track_of_, merge, ba, cancel_, &into.model);
+        Note(merged.message);
+        if (!merged.merged) {
+          ++refusals;
+          ++j;
+          continue;
+        }
+        ++merges;
+        into.merged = true;
+        grown->erase(grown->begin() + static_cast<std::ptrdiff_t>(j));
+        j = i + 1;  // The larger model changed: the others may join it now.
+      }
+    }
+    if (merges + refusals > 0) {
+      Note("model merging: " + std::to_string(merges) + " merged, " + std::to_string(refusals) +
+           " refused; " + std::to_string(grown->size()) + " model(s) left");
+    }
+    if (summary_ != nullptr) summary_->num_merges = merges;
+  }
+
+  // After the global adjustment of a merged model, the photos left out are tried again with the
+  // model's final intrinsics; the final adjustment follows when any joins.
+  void Reregister(GrownModel* g) {
+    Reconstruction& model = g->model;
+    init_image1_ = g->init_image1;
+    init_image2_ = g->init_image2;
+    AdoptTrackPoints(model);
+    if (g->merged) {
+      Finish(&model);
+      g->stddev = final_stddev_;
+    }
+    const std::size_t before = model.images.size();
+    last_global_size_ = before;
+    Grow(&model);
+    if (model.images.size() == before) return;
+    Note("re-registration with the final intrinsics: " +
+         std::to_string(model.images.size() - before) + " photo(s) joined a model of " +
+         std::to_string(before));
+    if (summary_ != nullptr) {
+      summary_->num_reregistered += static_cast<int>(model.images.size() - before);
+    }
+    for (const auto& [id, image] : model.images) used_.insert(id);
+    Finish(&model);
+    g->stddev = final_stddev_;
+  }
+
+  // The track <-> point maps of `model` (built by another pass or merged): each point stands
+  // for the track of its observations; a track with two points keeps the first.
+  void AdoptTrackPoints(const Reconstruction& model) {
+    track_point_.clear();
+    point_track_.clear();
+    for (const auto& [id, point] : model.points) {
+      for (const Observation& o : point.observations) {
+        const int track = track_of_.at(o.image_id)[o.keypoint];
+        if (track < 0 || track_point_.count(track)) continue;
+        track_point_[track] = id;
+        point_track_[id] = track;
+        break;
+      }
+    }
   }
 
   static void RemoveImage(Reconstruction* model, int image_id) {
@@ -1062,6 +1159,8 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
     m << "max_principal_point_shift must be in (0, 0.5], got " << max_principal_point_shift;
   } else if (std::string relative_error; !relative.Check(&relative_error)) {
     m << "relative: " << relative_error;
+  } else if (std::string merge_error; !merge.Check(&merge_error)) {
+    m << "merge: " << merge_error;
   } else {
     return true;
   }

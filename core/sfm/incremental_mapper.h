@@ -26,8 +26,10 @@
 // When no photo can be registered any more, the remaining tracks are triangulated again, a
 // final global adjustment refines everything, and — if photos are left — a new model starts
 // from the best remaining pair. A later model may also register photos of earlier ones (a
-// model that stopped at a weak link is reached from the other side); each photo is kept in
-// the largest model that has it. Models are returned largest first.
+// model that stopped at a weak link is reached from the other side). When all models are
+// grown, those that share photos or tracks are merged (model_merger.h), each model tries
+// again to register the photos left out with its final intrinsics, and a photo still in
+// several models is kept in the largest. Models are returned largest first.
 //
 // Before all this, cameras whose focal length is only a guess are searched for with small
 // trial reconstructions (IncrementalMapperOptions::focal_search): pairwise self-calibration
@@ -39,6 +41,7 @@
 #include "core/feature/matcher.h"
 #include "core/scene/reconstruction.h"
 #include "core/sfm/bundle_adjustment.h"
+#include "core/sfm/model_merger.h"
 #include "core/sfm/relative_registration.h"
 #include "core/sfm/tracks.h"
 #include "core/util/cancel.h"
@@ -158,6 +161,15 @@ struct IncrementalMapperOptions {
   // or the rays from two neighbours.
   bool relative_registration = true;
   RelativeRegistrationOptions relative;
+  // When every model is grown, models that share photos (a later model may re-register photos
+  // of an earlier one) or tracks are merged (model_merger.h: a robust similarity, the union,
+  // a joint adjustment; `merge.max_reprojection_error_px` is replaced by the mapper's), so
+  // every photo either registered stays. Logged "merged model B (n photos) into A ...".
+  bool merge_models = true;
+  ModelMergerOptions merge;
+  // Then each model (after its global adjustment) tries again to register the photos left
+  // out, with its final intrinsics; when any joins, the final adjustment runs again.
+  bool reregister = true;
   // Models with fewer photos are dropped. [2, ...]
   int min_model_images = 2;
   // Threads Ceres uses in bundle adjustment; <= 0 means all hardware threads. One by default,
@@ -181,6 +193,10 @@ struct MapperSummary {
   // Photos registered by relative pose (IncrementalMapperOptions::relative_registration), in
   // every model built, including ones later dropped or merged.
   int num_relative_registrations = 0;
+  // Models merged into another (IncrementalMapperOptions::merge_models), and photos registered
+  // by the re-registration after the global adjustment.
+  int num_merges = 0;
+  int num_reregistered = 0;
   std::vector<std::string> log;  // One line per notable event (initial pairs, failures).
   // Per camera id: the focal length the reconstruction started from after the focal search
   // (only cameras that were searched).

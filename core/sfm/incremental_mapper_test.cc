@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <iostream>
 #include <set>
 
 namespace reconduit {
@@ -355,7 +356,15 @@ TEST(ReconstructIncrementally, NoFocalSearchWithoutUncertainCameras) {
 // pair scored best) and stops at {0, 1, 2}: the odd points photo 2 shares with the others
 // have one registered view only. The next model starts among 3-9 and reaches photo 2 through
 // the odd points, which it has triangulated. Photo 2 then belongs to the larger model only.
-TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
+// An arc of 10 photos whose link between {0, 1, 2} and {3, ..., 9} is one-way: photo 2 shares
+// points with 3..9 that 0 and 1 do not see, so the model seeded on 0 + 1 stops at 2 while the
+// later model of 3..9 reaches 2 as well: two models sharing photo 2.
+struct OneWayArc {
+  SyntheticScene scene;
+  MapperInput input;
+};
+
+OneWayArc MakeOneWayArc() {
   SyntheticSceneOptions options;
   options.num_cameras = 10;
   options.layout = SyntheticCameraLayout::kArc;
@@ -363,26 +372,37 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
   options.num_points = 1000;
   options.pixel_noise_stddev = 0.3;
   options.seed = 12;
-  const SyntheticScene scene = SynthesizeScene(options);
-  MapperInput input = InputFromScene(scene, options.focal);
-  FilterMatches(scene, &input, [](int i, int j, int point) {
+  OneWayArc arc;
+  arc.scene = SynthesizeScene(options);
+  arc.input = InputFromScene(arc.scene, options.focal);
+  FilterMatches(arc.scene, &arc.input, [](int i, int j, int point) {
     if (point % 100 == 0) return true;  // A few points everywhere: too few to cross on.
     if (j <= 2) return point % 2 == 0;  // Within {0, 1, 2}.
     if (i >= 3) return true;            // Within {3, ..., 9}.
     return i == 2 && point % 2 == 1;    // Across: 2 with 3..9 only.
   });
-  for (MapperPair& pair : input.pairs) {
+  for (MapperPair& pair : arc.input.pairs) {
     // Seeds are ranked by matches discounted by the homography's share: 0 + 1 first.
     pair.num_inliers_H = pair.image1 == 0 && pair.image2 == 1 ? 0 : pair.num_inliers_F;
   }
+  return arc;
+}
+
+TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
+  const OneWayArc arc = MakeOneWayArc();
+  const SyntheticScene& scene = arc.scene;
+  const MapperInput& input = arc.input;
   Progress progress;
   MapperSummary summary;
   // Registration by relative pose would cross the weak link from photo 2 (the test
-  // WideGapsNeedRelativePoses): this test is about the later model's reach.
+  // WideGapsNeedRelativePoses): this test is about the later model's reach, without merging
+  // (ModelsSharingAPhotoAreMerged).
   IncrementalMapperOptions no_relative;
   no_relative.relative_registration = false;
+  no_relative.merge_models = false;
   const auto models =
       ReconstructIncrementally(input, no_relative, progress, CancelToken(), &summary);
+  EXPECT_EQ(summary.num_merges, 0);
   ASSERT_EQ(models.size(), 2u);
   std::set<int> larger, smaller;
   for (const auto& [id, image] : models[0].images) larger.insert(id);
@@ -395,7 +415,7 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
     EXPECT_GE(point.observations.size(), 2u);
     for (const Observation& o : point.observations) EXPECT_TRUE(smaller.count(o.image_id));
   }
-  EXPECT_LT(Compare(models[0], scene).max_center, 0.01 * options.camera_distance);
+  EXPECT_LT(Compare(models[0], scene).max_center, 0.01 * SyntheticSceneOptions().camera_distance);
   // Every track seen by two photos of the larger model is a point of it, also the few the
   // first model had triangulated (a model does not inherit another's points).
   std::size_t tracks = 0;
@@ -405,6 +425,116 @@ TEST(ReconstructIncrementally, APhotoOfAnEarlierModelJoinsALargerOne) {
     tracks += seen >= 2;
   }
   EXPECT_EQ(models[0].points.size(), tracks);
+}
+
+// The same two models, merged: they share photo 2 and the points it sees with both sides.
+TEST(ReconstructIncrementally, ModelsSharingAPhotoAreMerged) {
+  const OneWayArc arc = MakeOneWayArc();
+  Progress progress;
+  MapperSummary summary;
+  IncrementalMapperOptions options;
+  options.relative_registration = false;
+  const auto models =
+      ReconstructIncrementally(arc.input, options, progress, CancelToken(), &summary);
+  ASSERT_EQ(models.size(), 1u);
+  EXPECT_EQ(models[0].images.size(), 10u);
+  EXPECT_EQ(summary.num_merges, 1);
+  EXPECT_EQ(summary.num_registered, 10);
+  int merged = 0;
+  for (const std::string& line : summary.log) {
+    merged += line.find("merged model B (3 photos) into A (8 photos) via 1 shared photos") !=
+              std::string::npos;
+  }
+  EXPECT_EQ(merged, 1);
+  const Errors errors = Compare(models[0], arc.scene);
+  EXPECT_LT(errors.max_center, 0.01 * SyntheticSceneOptions().camera_distance);
+  EXPECT_LT(errors.max_rotation_deg, 0.3);
+  EXPECT_LT(models[0].MeanReprojectionError(), 1.0);
+}
+
+// Mean error of the relative rotations over all pairs of registered photos, degrees.
+double RelativeRotationErrorDeg(const Reconstruction& model, const SyntheticScene& scene) {
+  double sum = 0.0;
+  int count = 0;
+  for (auto i = model.images.begin(); i != model.images.end(); ++i) {
+    for (auto j = std::next(i); j != model.images.end(); ++j) {
+      const Eigen::Quaterniond estimated =
+          i->second.cam_from_world.rotation * j->second.cam_from_world.rotation.inverse();
+      const Eigen::Quaterniond truth = scene.images[i->first].cam_from_world.rotation *
+                                       scene.images[j->first].cam_from_world.rotation.inverse();
+      sum += estimated.angularDistance(truth) * 180.0 / M_PI;
+      ++count;
+    }
+  }
+  return count > 0 ? sum / count : 0.0;
+}
+
+// A loop of 24 photos 15 deg apart around a scene whose points each face one way (seen from
+// the photos within 50 deg of it, as walls around a courtyard), 0.5 px noise, 2 % outliers.
+// The loop is cut between photos 5|6 and 17|18: `weak` keeps one match in `weak_share` there,
+// between the two neighbours only (fewer than registration needs: the mapper grows two
+// models, linked by those few tracks); `open` drops the 5|6 link altogether and keeps 17|18
+// whole (one open sequence of the same 24 photos).
+struct LoopRun {
+  SyntheticScene scene;
+  std::vector<Reconstruction> models;
+  MapperSummary summary;
+};
+
+LoopRun ReconstructLoop(bool open) {
+  SyntheticSceneOptions scene_options;
+  scene_options.num_cameras = 24;
+  scene_options.num_points = 2400;
+  scene_options.camera_height = 1.0;
+  scene_options.pixel_noise_stddev = 0.5;
+  scene_options.outlier_fraction = 0.02;
+  scene_options.seed = 31;
+  LoopRun run;
+  run.scene = SynthesizeScene(scene_options);
+  MapperInput input = InputFromScene(run.scene, scene_options.focal);
+  constexpr int kWeakShare = 20;
+  FilterMatches(run.scene, &input, [&](int i, int j, int point) {
+    const double facing = std::fmod(point * 137.5, 360.0);
+    auto sees = [&](int k) { return std::abs(std::remainder(15.0 * k - facing, 360.0)) <= 50; };
+    if (!sees(i) || !sees(j)) return false;
+    auto side = [](int k) { return k >= 6 && k <= 17; };
+    if (side(i) == side(j)) return true;
+    const bool first_cut = i <= 5 && j >= 6 && j <= 17;
+    if (open) return !first_cut;
+    const bool neighbours = (i == 5 && j == 6) || (i == 17 && j == 18);
+    return neighbours && point % kWeakShare == 0;
+  });
+  IncrementalMapperOptions options;
+  // More than the weak links give: they cannot be crossed by PnP, nor by relative pose
+  // (fewer than its 30 pair inliers).
+  options.min_registration_points = 40;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
+  const LoopRun loop = ReconstructLoop(/*open=*/false);
+  ASSERT_EQ(loop.models.size(), 1u);
+  EXPECT_EQ(loop.models[0].images.size(), 24u);
+  EXPECT_EQ(loop.summary.num_merges, 1);
+  int merged = 0;
+  for (const std::string& line : loop.summary.log) {
+    merged += line.find("merged model B (12 photos) into A (12 photos) via 0 shared photos") !=
+              std::string::npos;
+  }
+  EXPECT_EQ(merged, 1);
+  const LoopRun open = ReconstructLoop(/*open=*/true);
+  ASSERT_EQ(open.models.size(), 1u);
+  ASSERT_EQ(open.models[0].images.size(), 24u);
+  EXPECT_EQ(open.summary.num_merges, 0);
+  const double loop_error = RelativeRotationErrorDeg(loop.models[0], loop.scene);
+  const double open_error = RelativeRotationErrorDeg(open.models[0], open.scene);
+  std::cout << "relative rotation error: loop " << loop_error << " deg, open " << open_error
+            << " deg\n";
+  EXPECT_LT(loop_error, 1.5 * open_error + 0.01);
+  EXPECT_LT(Compare(loop.models[0], loop.scene).max_center,
+            0.01 * SyntheticSceneOptions().camera_distance);
 }
 
 // A ring of 8 photos 45 deg apart (templeSparseRing every second photo): each point faces one
@@ -461,7 +591,7 @@ TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
   EXPECT_EQ(without.summary.num_relative_registrations, 0);
   const Errors errors = Compare(with.models.front(), with.scene);
   EXPECT_LT(errors.max_rotation_deg, 0.5);
-  EXPECT_LT(errors.max_center, 0.01 * 6.0);
+  EXPECT_LT(errors.max_center, 0.01 * SyntheticSceneOptions().camera_distance);
 }
 
 TEST(ReconstructIncrementally, PureRotationCannotInitialise) {
