@@ -298,6 +298,36 @@ TEST(MergeModels, JoinsEveryPhotoAndFusesSharedPoints) {
   }
 }
 
+// The courtyard: a loop of 19 photos reconstructed as two overlapping models of 15
+// and 17 photos that share 13 (here: 0..14 and 2..18, B in another frame, both noisy).
+TEST(MergeModels, OverlappingLoopModelsKeepEveryPhoto) {
+  SyntheticSceneOptions options;
+  options.num_cameras = 19;
+  options.num_points = 800;
+  options.pixel_noise_stddev = 0.5;
+  options.outlier_fraction = 0.02;
+  options.seed = 19;
+  const SyntheticScene scene = SynthesizeScene(options);
+  Reconstruction a = ModelOf(scene, Range(0, 14), Similarity3(), {0.003, 0.003, 8});
+  const Reconstruction b =
+      ModelOf(scene, Range(2, 18), Inverse(KnownSimilarity()), {0.003, 0.003, 9});
+  BundleAdjustmentOptions ba;
+  ba.num_threads = 1;
+  ba.loss = BundleAdjustmentLoss::kCauchy;
+  const MergeSummary summary = MergeModels(b, nullptr, ModelMergerOptions(), ba, CancelToken(), &a);
+  ASSERT_TRUE(summary.merged) << summary.message;
+  EXPECT_EQ(summary.alignment.num_images, 13);
+  EXPECT_EQ(summary.alignment.num_inlier_images, 13);
+  EXPECT_EQ(a.images.size(), 19u);
+  EXPECT_LT(a.MeanReprojectionError(), 1.0);
+  for (int id : {15, 16, 17, 18}) {
+    const double error = (a.images.at(id).cam_from_world.CenterInWorld() -
+                          scene.images[id].cam_from_world.CenterInWorld())
+                             .norm();
+    EXPECT_LT(error, 0.01 * options.camera_distance) << id;
+  }
+}
+
 TEST(MergeModels, RefusedMergeLeavesAUnchanged) {
   const SyntheticScene scene = Ring();
   Reconstruction a = ModelOf(scene, Range(0, 3), Similarity3());

@@ -367,6 +367,8 @@ StageResult SparseStage::Run(StageContext& context) const {
                                 summary.num_registered - static_cast<int>(best.images.size())},
                                {"photos", input.images.size()},
                                {"registered_by_relative_pose", summary.num_relative_registrations},
+                               {"models_merged", summary.num_merges},
+                               {"registered_again", summary.num_reregistered},
                                {"points", best.points.size()},
                                {"mean_reprojection_error_px", best.MeanReprojectionError()},
                                {"cameras", calibration}});
