@@ -471,17 +471,39 @@ double RelativeRotationErrorDeg(const Reconstruction& model, const SyntheticScen
 
 // A loop of 24 photos 15 deg apart around a scene whose points each face one way (seen from
 // the photos within 50 deg of it, as walls around a courtyard), 0.5 px noise, 2 % outliers.
-// The loop is cut between photos 5|6 and 17|18: `weak` keeps one match in `weak_share` there,
-// between the two neighbours only (fewer than registration needs: the mapper grows two
-// models, linked by those few tracks); `open` drops the 5|6 link altogether and keeps 17|18
-// whole (one open sequence of the same 24 photos).
+//   kWeakLinks  the loop is cut between photos 5|6 and 17|18, where one match in 20 is kept
+//               between the two neighbours only (fewer than registration needs): the mapper
+//               grows two models, linked by those few tracks;
+//   kOpen       the 5|6 link is dropped altogether and 17|18 kept whole: one open sequence of
+//               the same 24 photos;
+//   kBridge     as kWeakLinks, but photo 6 matches only one point in 16 with either side
+//               (other points each side): it sees too few points of either model to be
+//               registered, enough of the two merged.
+enum class LoopCut { kWeakLinks, kOpen, kBridge };
+
 struct LoopRun {
   SyntheticScene scene;
   std::vector<Reconstruction> models;
   MapperSummary summary;
 };
 
-LoopRun ReconstructLoop(bool open) {
+bool KeepLoopMatch(LoopCut cut, int i, int j, int point) {
+  const double facing = std::fmod(point * 137.5, 360.0);
+  auto sees = [&](int k) { return std::abs(std::remainder(15.0 * k - facing, 360.0)) <= 50; };
+  if (!sees(i) || !sees(j)) return false;
+  const int first = cut == LoopCut::kBridge ? 7 : 6;  // The first photo of the second side.
+  auto side = [&](int k) { return k >= first && k <= 17; };
+  if (cut == LoopCut::kBridge && (i == 6 || j == 6)) {
+    return point % 16 == (side(i == 6 ? j : i) ? 0 : 8);
+  }
+  if (side(i) == side(j)) return true;
+  const bool first_cut = i < first && side(j);
+  if (cut == LoopCut::kOpen) return !first_cut;
+  const bool neighbours = (i == first - 1 && j == first) || (i == 17 && j == 18);
+  return neighbours && point % 20 == 0;
+}
+
+LoopRun ReconstructLoop(LoopCut cut, bool reregister = true) {
   SyntheticSceneOptions scene_options;
   scene_options.num_cameras = 24;
   scene_options.num_points = 2400;
@@ -492,29 +514,20 @@ LoopRun ReconstructLoop(bool open) {
   LoopRun run;
   run.scene = SynthesizeScene(scene_options);
   MapperInput input = InputFromScene(run.scene, scene_options.focal);
-  constexpr int kWeakShare = 20;
-  FilterMatches(run.scene, &input, [&](int i, int j, int point) {
-    const double facing = std::fmod(point * 137.5, 360.0);
-    auto sees = [&](int k) { return std::abs(std::remainder(15.0 * k - facing, 360.0)) <= 50; };
-    if (!sees(i) || !sees(j)) return false;
-    auto side = [](int k) { return k >= 6 && k <= 17; };
-    if (side(i) == side(j)) return true;
-    const bool first_cut = i <= 5 && j >= 6 && j <= 17;
-    if (open) return !first_cut;
-    const bool neighbours = (i == 5 && j == 6) || (i == 17 && j == 18);
-    return neighbours && point % kWeakShare == 0;
-  });
+  FilterMatches(run.scene, &input,
+                [&](int i, int j, int point) { return KeepLoopMatch(cut, i, j, point); });
   IncrementalMapperOptions options;
-  // More than the weak links give: they cannot be crossed by PnP, nor by relative pose
-  // (fewer than its 30 pair inliers).
+  // More than the weak links give: they cannot be crossed by PnP, nor by relative pose.
   options.min_registration_points = 40;
+  options.relative.min_pair_inliers = 40;
+  options.reregister = reregister;
   Progress progress;
   run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
   return run;
 }
 
 TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
-  const LoopRun loop = ReconstructLoop(/*open=*/false);
+  const LoopRun loop = ReconstructLoop(LoopCut::kWeakLinks);
   ASSERT_EQ(loop.models.size(), 1u);
   EXPECT_EQ(loop.models[0].images.size(), 24u);
   EXPECT_EQ(loop.summary.num_merges, 1);
@@ -524,7 +537,7 @@ TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
               std::string::npos;
   }
   EXPECT_EQ(merged, 1);
-  const LoopRun open = ReconstructLoop(/*open=*/true);
+  const LoopRun open = ReconstructLoop(LoopCut::kOpen);
   ASSERT_EQ(open.models.size(), 1u);
   ASSERT_EQ(open.models[0].images.size(), 24u);
   EXPECT_EQ(open.summary.num_merges, 0);
@@ -535,6 +548,30 @@ TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
   EXPECT_LT(loop_error, 1.5 * open_error + 0.01);
   EXPECT_LT(Compare(loop.models[0], loop.scene).max_center,
             0.01 * SyntheticSceneOptions().camera_distance);
+}
+
+// Photo 6 sees too few points of either model; after the merge, re-registration places it.
+TEST(ReconstructIncrementally, APhotoLeftOutJoinsTheMergedModel) {
+  const LoopRun without = ReconstructLoop(LoopCut::kBridge, /*reregister=*/false);
+  ASSERT_FALSE(without.models.empty());
+  EXPECT_EQ(without.summary.num_merges, 1);
+  EXPECT_EQ(without.models[0].images.size(), 23u);
+  EXPECT_FALSE(without.models[0].images.count(6));
+
+  const LoopRun with = ReconstructLoop(LoopCut::kBridge);
+  ASSERT_EQ(with.models.size(), 1u);
+  EXPECT_EQ(with.models[0].images.size(), 24u);
+  EXPECT_EQ(with.summary.num_reregistered, 1);
+  int lines = 0;
+  for (const std::string& line : with.summary.log) {
+    lines += line.find(
+                 "re-registration with the final intrinsics: 1 photo(s) joined a model "
+                 "of 23") != std::string::npos;
+  }
+  EXPECT_EQ(lines, 1);
+  const Errors errors = Compare(with.models[0], with.scene);
+  EXPECT_LT(errors.max_center, 0.01 * SyntheticSceneOptions().camera_distance);
+  EXPECT_LT(errors.max_rotation_deg, 0.5);
 }
 
 // A ring of 8 photos 45 deg apart (templeSparseRing every second photo): each point faces one
