@@ -17,6 +17,7 @@
 #include <numeric>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 namespace reconduit {
 namespace {
@@ -124,6 +125,8 @@ class Mapper {
     int init_image1 = kInvalidId;            // The gauge of its adjustments.
     int init_image2 = kInvalidId;
     bool merged = false;  // Another model was merged into it since its final adjustment.
+    int id = 0;           // For MergeAll: which model, and how often it has grown by merging.
+    int version = 0;
   };
 
   // Replaces the initial intrinsics of the input (a focal hypothesis).
@@ -194,31 +197,41 @@ class Mapper {
   // Merges the models that share photos or tracks (model_merger.h), each into the largest that
   // takes it, until no merge succeeds.
   void MergeAll(std::vector<GrownModel>* grown) {
-    std::stable_sort(grown->begin(), grown->end(), [](const GrownModel& a, const GrownModel& b) {
-      return a.model.images.size() > b.model.images.size();
-    });
     ModelMergerOptions merge = options_.merge;
     merge.max_reprojection_error_px = options_.max_reprojection_error_px;
+    for (std::size_t k = 0; k < grown->size(); ++k) (*grown)[k].id = static_cast<int>(k);
+    // Pairs refused as they were (ids and versions): tried again only when either changed.
+    std::set<std::tuple<int, int, int, int>> refused;
     int merges = 0, refusals = 0;
-    for (std::size_t i = 0; i < grown->size(); ++i) {
-      for (std::size_t j = i + 1; j < grown->size();) {
-        cancel_.ThrowIfCanceled();
-        GrownModel& into = (*grown)[i];
-        init_image1_ = into.init_image1;
-        init_image2_ = into.init_image2;
-        const BundleAdjustmentOptions ba = GlobalBundleOptions(into.model, /*final=*/false);
-        const MergeSummary merged =
-            MergeModels((*grown)[j].model, &track_of_, merge, ba, cancel_, &into.model);
-        Note(merged.message);
-        if (!merged.merged) {
-          ++refusals;
-          ++j;
-          continue;
+    for (bool changed = true; changed;) {
+      changed = false;
+      std::stable_sort(grown->begin(), grown->end(), [](const GrownModel& a, const GrownModel& b) {
+        return a.model.images.size() > b.model.images.size();
+      });
+      for (std::size_t i = 0; i < grown->size() && !changed; ++i) {
+        for (std::size_t j = i + 1; j < grown->size() && !changed; ++j) {
+          cancel_.ThrowIfCanceled();
+          GrownModel& into = (*grown)[i];
+          const GrownModel& from = (*grown)[j];
+          const auto key = std::make_tuple(into.id, into.version, from.id, from.version);
+          if (refused.count(key)) continue;
+          init_image1_ = into.init_image1;
+          init_image2_ = into.init_image2;
+          const BundleAdjustmentOptions ba = GlobalBundleOptions(into.model, /*final=*/false);
+          const MergeSummary merged =
+              MergeModels(from.model, &track_of_, merge, ba, cancel_, &into.model);
+          Note(merged.message);
+          if (!merged.merged) {
+            ++refusals;
+            refused.insert(key);
+            continue;
+          }
+          ++merges;
+          into.merged = true;
+          ++into.version;
+          grown->erase(grown->begin() + static_cast<std::ptrdiff_t>(j));
+          changed = true;  // Sizes changed: every pair with the merged model is tried again.
         }
-        ++merges;
-        into.merged = true;
-        grown->erase(grown->begin() + static_cast<std::ptrdiff_t>(j));
-        j = i + 1;  // The larger model changed: the others may join it now.
       }
     }
     if (merges + refusals > 0) {

@@ -371,8 +371,7 @@ MergeSummary MergeModels(const Reconstruction& b,
   JoinModels(b, c, *alignment, &merged);
   BundleAdjustmentOptions ba = bundle;
   if (ba.constant_pose_image_ids.empty() && ba.variable_pose_image_ids.empty()) {
-    auto it = merged.images.begin();
-    ba.constant_pose_image_ids = {it->first};
+    ba.constant_pose_image_ids = {a->images.begin()->first};
     if (ba.scale_fixing_image_id == kInvalidId && a->images.size() >= 2) {
       ba.scale_fixing_image_id = std::next(a->images.begin())->first;
       ba.scale_fixing_translation_index = -1;
