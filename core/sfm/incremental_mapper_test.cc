@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <iostream>
 #include <set>
 
@@ -212,9 +213,11 @@ struct RingRun {
   Errors errors;
 };
 
-RingRun ReconstructRingWhoseAxesMeet(int num_points, const IncrementalMapperOptions& options) {
+// A temple-like ring: `num_cameras` photos of 640 x 480 (focal 1536 px) on a circle around a
+// small object, every optical axis through its centre, 0.3 px noise.
+SyntheticSceneOptions TempleLikeRing(int num_cameras, int num_points, std::uint64_t seed) {
   SyntheticSceneOptions scene_options;
-  scene_options.num_cameras = 16;
+  scene_options.num_cameras = num_cameras;
   scene_options.num_points = num_points;
   scene_options.width = 640;
   scene_options.height = 480;
@@ -224,7 +227,12 @@ RingRun ReconstructRingWhoseAxesMeet(int num_points, const IncrementalMapperOpti
   scene_options.scene_radius = 0.8;
   scene_options.target_jitter = 0.0;
   scene_options.pixel_noise_stddev = 0.3;
-  scene_options.seed = 12;
+  scene_options.seed = seed;
+  return scene_options;
+}
+
+RingRun ReconstructRingWhoseAxesMeet(int num_points, const IncrementalMapperOptions& options) {
+  const SyntheticSceneOptions scene_options = TempleLikeRing(16, num_points, 12);
   const SyntheticScene scene = SynthesizeScene(scene_options);
   MapperInput input = InputFromScene(scene, /*focal_guess=*/1.2 * 640);
   // As on an object's surface, each point faces one way and is seen only from the photos
@@ -291,18 +299,7 @@ TEST(ReconstructIncrementally, FocalSearchMultiStart) {
 // wide gap, so a trial from it stays at two photos and cannot refine the focal. The trial
 // then moves on to the next seed (IncrementalMapperOptions::focal_search_seeds).
 RingRun ReconstructRingWithAnIsolatedSeed(int focal_search_seeds) {
-  SyntheticSceneOptions scene_options;
-  scene_options.num_cameras = 12;
-  scene_options.num_points = 3000;
-  scene_options.width = 640;
-  scene_options.height = 480;
-  scene_options.focal = 1536;
-  scene_options.camera_distance = 6.0;
-  scene_options.camera_height = 1.0;
-  scene_options.scene_radius = 0.8;
-  scene_options.target_jitter = 0.0;
-  scene_options.pixel_noise_stddev = 0.3;
-  scene_options.seed = 14;
+  const SyntheticSceneOptions scene_options = TempleLikeRing(12, 3000, 14);
   const SyntheticScene scene = SynthesizeScene(scene_options);
   MapperInput input = InputFromScene(scene, /*focal_guess=*/1.2 * 640);
   FilterMatches(scene, &input, [](int i, int j, int point) {
