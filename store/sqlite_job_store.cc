@@ -1020,7 +1020,11 @@ Status ApplyMigrationsWhenFree(SqliteConnection& db, const SqliteJobStoreOptions
     } catch (const SqliteError& e) {
       status = e.status();
     }
-    if (status.code() != StatusCode::kResourceExhausted) return status;
+    // Only a busy database is worth waiting for; a read-only one stays read-only.
+    if (status.code() != StatusCode::kResourceExhausted ||
+        sqlite3_db_readonly(db.get(), "main") == 1) {
+      return status;
+    }
     const auto now = std::chrono::steady_clock::now();
     if (!deadline) deadline = now + std::chrono::milliseconds(options.busy_timeout_ms);
     if (now > *deadline) return status;
