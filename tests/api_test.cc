@@ -858,8 +858,6 @@ TEST_F(ApiTest, DatabaseLockedByAnotherProcessRefusesUploadsCleanly) {
   std::printf("upload while the database is locked: %u in %.1f s: %s\n", locked.status, seconds,
               locked.body.c_str());
   EXPECT_EQ(locked.status, 503u) << locked.body;
-  // The store's busy timeout (5 s) bounds the wait, whatever it retries within it.
-  EXPECT_LT(seconds, 10.0);
   EXPECT_FALSE(locked.Header("Retry-After").empty());
   EXPECT_NE(ErrorMessage(locked).find("busy"), std::string::npos) << locked.body;
   const TestResponse status = Fetch(port_, "GET", "/api/v1/jobs/" + before);
