@@ -866,7 +866,11 @@ async function refreshJob() {
       .filter(([, reason]) => reason !== null)
       .map(([title, reason]) => `${title} skipped: ${reason}`);
   const skippedNote = skipped.length > 0 ? el('p', {class: 'skipped'}, skipped.join('; ')) : '';
-  $('job-summary').replaceChildren(el('p', {}, facts), skippedNote, error);
+  // Photos the model left out, and why (the sparse stage's plain sentence).
+  const sparse = (job.stages || {}).sparse;
+  const leftOut = sparse && sparse.summary && sparse.summary.left_out;
+  const leftOutNote = leftOut && leftOut.note ? el('p', {class: 'skipped', id: 'left-out'}, leftOut.note) : '';
+  $('job-summary').replaceChildren(el('p', {}, facts), leftOutNote, skippedNote, error);
   const actions = [];
   if (job.state === 'succeeded') {
     const name = `reconduit-${job.id.slice(0, 8)}.zip`;

@@ -617,6 +617,18 @@ class JobRun {
     return patch;
   }
 
+  // `summary` with every list, at any depth, replaced by "<n> entries".
+  static nlohmann::json BriefSummary(nlohmann::json summary) {
+    for (auto& [key, value] : summary.items()) {
+      if (value.is_array()) {
+        value = std::to_string(value.size()) + " entries";
+      } else if (value.is_object()) {
+        value = BriefSummary(std::move(value));
+      }
+    }
+    return summary;
+  }
+
   // The job event for the end of a stage: skipped, or how it ended with time and memory.
   static NewEvent StageEndEvent(const StageRecord& record, double overall) {
     const bool success = record.status == StageStatus::kSuccess;
@@ -635,13 +647,9 @@ class JobRun {
     }
     LogLevel level = LogLevel::kInfo;
     if (success && !record.summary.empty()) {
-      // Lists (the dense stage's per-map figures) are in the job's stage records and the
-      // report; the event line says how long they are.
-      nlohmann::json brief = record.summary;
-      for (auto& [key, value] : brief.items()) {
-        if (value.is_array()) value = std::to_string(value.size()) + " entries";
-      }
-      text += ": " + brief.dump();
+      // Lists (the dense stage's per-map figures, the sparse stage's photos left out) are in
+      // the job's stage records and the report; the event line says how long they are.
+      text += ": " + BriefSummary(record.summary).dump();
     }
     if (!success) {
       level = record.status == StageStatus::kCanceled ? LogLevel::kInfo : LogLevel::kError;

@@ -246,6 +246,8 @@ void Page::Cameras() {
            Count(Field(*sparse, "points")) + " points; " + Count(Field(*sparse, "registered")) +
            " of " + Count(Field(*sparse, "photos")) + " usable photos registered in the model (" +
            Count(Field(*sparse, "models")) + " model(s)).</p>\n";
+  const std::string left_out = Text(Field(Field(*sparse, "left_out"), "note"));
+  if (!left_out.empty()) html_ += "<p class=\"skipped\">" + HtmlEscape(left_out) + "</p>\n";
   const json& cameras = Field(*sparse, "cameras");
   if (!cameras.is_array() || cameras.empty()) return;
   html_ +=

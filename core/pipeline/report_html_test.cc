@@ -109,6 +109,22 @@ TEST(RenderReportHtml, ShowsSkippedStagesWithTheirReasons) {
   EXPECT_NE(html.find("820.0 MB (the process's)"), std::string::npos) << "the sparse stage";
 }
 
+TEST(RenderReportHtml, SaysWhichPhotosTheModelLeftOut) {
+  ReportHtmlInput input = SampleInput();
+  EXPECT_EQ(RenderReportHtml(input).find("are in the model"), std::string::npos)
+      << "nothing said when no photo is left out";
+  for (json& stage : input.report["stages"]) {
+    if (stage["name"] == "sparse") {
+      stage["summary"]["left_out"] = {
+          {"unmatched", {"b.jpg"}},
+          {"note", "1 of 2 photos are in the model. 1 photo (b.jpg) matched no <other> photo."}};
+    }
+  }
+  EXPECT_NE(RenderReportHtml(input).find("<p class=\"skipped\">1 of 2 photos are in the model. 1 "
+                                         "photo (b.jpg) matched no &lt;other&gt; photo.</p>"),
+            std::string::npos);
+}
+
 TEST(RenderReportHtml, LinksOnlyFilesTheArchiveHolds) {
   const ReportHtmlInput input = SampleInput();
   const std::string html = RenderReportHtml(input);

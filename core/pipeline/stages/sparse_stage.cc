@@ -5,6 +5,7 @@
 #include "core/io/reconstruction_json.h"
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
+#include "core/pipeline/stages/left_out.h"
 #include "core/pipeline/stages/matching_stage.h"
 #include "core/sfm/incremental_mapper.h"
 #include "core/sfm/initial_calibration.h"
@@ -359,19 +360,27 @@ StageResult SparseStage::Run(StageContext& context) const {
       !s.ok()) {
     return StageResult::Failed(s.message());
   }
+  // Photos the delivered model left out, said plainly (left_out.h): in the job's log, and in
+  // the summary the page and report.html show.
+  const LeftOutPhotos left_out = FindLeftOutPhotos(input, models);
+  if (!left_out.empty()) {
+    LOG_WARNING << "sparse: " << left_out.Note();
+  }
   // "registered" counts the photos of the delivered (largest) model only; photos in smaller
   // disconnected models are counted apart.
-  return StageResult::Success({{"models", models.size()},
-                               {"registered", best.images.size()},
-                               {"registered_in_other_models",
-                                summary.num_registered - static_cast<int>(best.images.size())},
-                               {"photos", input.images.size()},
-                               {"registered_by_relative_pose", summary.num_relative_registrations},
-                               {"models_merged", summary.num_merges},
-                               {"registered_again", summary.num_reregistered},
-                               {"points", best.points.size()},
-                               {"mean_reprojection_error_px", best.MeanReprojectionError()},
-                               {"cameras", calibration}});
+  nlohmann::json summary_json = {
+      {"models", models.size()},
+      {"registered", best.images.size()},
+      {"registered_in_other_models", summary.num_registered - static_cast<int>(best.images.size())},
+      {"photos", input.images.size()},
+      {"registered_by_relative_pose", summary.num_relative_registrations},
+      {"models_merged", summary.num_merges},
+      {"registered_again", summary.num_reregistered},
+      {"points", best.points.size()},
+      {"mean_reprojection_error_px", best.MeanReprojectionError()},
+      {"cameras", calibration}};
+  if (!left_out.empty()) summary_json["left_out"] = left_out.ToJson();
+  return StageResult::Success(std::move(summary_json));
 }
 
 }  // namespace reconduit
