@@ -1,6 +1,8 @@
 #include "core/pipeline/stages/matching_stage.h"
 
+#include "core/feature/affine_features.h"
 #include "core/feature/matcher.h"
+#include "core/image/image_reader.h"
 #include "core/io/file_util.h"
 #include "core/pipeline/stages/features_stage.h"
 #include "core/pipeline/stages/ingest_stage.h"
@@ -8,13 +10,17 @@
 #include "core/pipeline/stages/weak_pairs.h"
 #include "core/util/logging.h"
 #include "core/util/parallel.h"
+#include "core/util/timer.h"
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <set>
+#include <stdexcept>
 
 namespace reconduit {
 namespace {
@@ -256,6 +262,235 @@ void RetryWeakPairs(const std::vector<ImagePair>& chosen,
            << options.retry_ratio << "; " << kept << " kept";
 }
 
+// Photos whose weak pairs are matched again with affine-adapted features: those of the weak
+// pairs PairsToRetry still chooses after the looser ratio test, in the pairs' order (best
+// global similarity first), at most kMaxAffinePhotos of them (memory: ~10-20 MB of float
+// descriptors a photo; time: 1-5 s a photo on one core).
+constexpr std::size_t kMaxAffinePhotos = 32;
+
+struct AffinePlan {
+  std::vector<std::size_t> pairs;  // Indices into the chosen pairs.
+  std::vector<int> photos;         // Ascending.
+};
+
+AffinePlan PlanAffineRetry(const std::vector<VerifiedPair>& verified) {
+  std::vector<PairStrength> strengths;
+  for (const VerifiedPair& p : verified) {
+    strengths.push_back({p.matches.image1, p.matches.image2,
+                         std::max(p.num_inliers_F, p.num_inliers_H), !p.matches.matches.empty()});
+  }
+  AffinePlan plan;
+  std::set<int> photos;
+  for (std::size_t k : PairsToRetry(strengths, WeakPairOptions())) {
+    std::set<int> with = photos;
+    with.insert(verified[k].matches.image1);
+    with.insert(verified[k].matches.image2);
+    if (with.size() > kMaxAffinePhotos) continue;
+    photos = std::move(with);
+    plan.pairs.push_back(k);
+  }
+  plan.photos.assign(photos.begin(), photos.end());
+  return plan;
+}
+
+// Each photo's SIFT features (the features stage's, with their descriptors) followed by its
+// affine-adapted features that lie more than 1 px from every SIFT keypoint: a match in either
+// numbering then names the same keypoint, so tracks run through SIFT and affine matches alike.
+struct AffineFeatures {
+  PairFeatures features;
+  std::map<int, FeatureSet> added;  // Photo -> the appended keypoints and their descriptors.
+};
+
+FeatureSet ExtractAffineOf(const IngestedImage& image,
+                           const AffineFeatureOptions& options,
+                           const StageContext& context) {
+  ImageReaderOptions reader;
+  reader.min_side = context.options.min_image_side;
+  reader.max_pixels = context.options.max_image_pixels;
+  reader.read_exif = false;
+  reader.grey = true;
+  reader.max_side = options.max_image_side;
+  ImageInfo info;
+  auto pixels = ReadImage(image.path, reader, &info);
+  if (!pixels.ok()) {
+    throw std::runtime_error("the photo " + image.name + " can no longer be read (" +
+                             pixels.status().message() + ")");
+  }
+  return ExtractAffineFeatures(*pixels, options, cv::Size(info.width, info.height));
+}
+
+AffineFeatures ExtractAffineFeaturesOf(const std::vector<int>& photos,
+                                       const std::vector<IngestedImage>& images,
+                                       const AffineFeatureOptions& options,
+                                       StageContext& context) {
+  std::map<int, const IngestedImage*> by_index;
+  for (const IngestedImage& image : images) by_index[image.index] = &image;
+  std::vector<FeatureSet> unions(photos.size()), added(photos.size());
+  context.progress.Restart(photos.size(), "photos (affine-adapted features)");
+  // One OpenCV thread per photo in flight, as in the features stage.
+  const int previous_cv_threads = cv::getNumThreads();
+  cv::setNumThreads(1);
+  try {
+    ParallelFor(
+        0, photos.size(),
+        [&](std::size_t k) {
+          context.cancel.ThrowIfCanceled();
+          const FeatureSet affine = ExtractAffineOf(*by_index.at(photos[k]), options, context);
+          auto sift = ReadImageFeatures(context.workspace, photos[k]);
+          if (!sift.ok()) throw std::runtime_error(sift.status().message());
+          std::vector<Keypoint> appended;
+          const std::vector<int> index =
+              MergeKeypoints(sift->keypoints, affine.keypoints, 1.0, &appended);
+          FeatureSet& extra = added[k];
+          extra.image_width = sift->image_width;
+          extra.image_height = sift->image_height;
+          extra.keypoints = std::move(appended);
+          extra.descriptors.create(static_cast<int>(extra.keypoints.size()), 128, CV_8U);
+          const int base = static_cast<int>(sift->size());
+          for (std::size_t i = 0; i < index.size(); ++i) {
+            if (index[i] < base) continue;
+            affine.descriptors.row(static_cast<int>(i))
+                .copyTo(extra.descriptors.row(index[i] - base));
+          }
+          FeatureSet& both = unions[k];
+          both.image_width = sift->image_width;
+          both.image_height = sift->image_height;
+          both.keypoints = sift->keypoints;
+          both.keypoints.insert(both.keypoints.end(), extra.keypoints.begin(),
+                                extra.keypoints.end());
+          cv::vconcat(sift->descriptors, extra.descriptors, both.descriptors);
+          context.progress.Advance();
+        },
+        context.options.num_threads);
+  } catch (...) {
+    cv::setNumThreads(previous_cv_threads);
+    throw;
+  }
+  cv::setNumThreads(previous_cv_threads);
+  AffineFeatures out;
+  for (std::size_t k = 0; k < photos.size(); ++k) {
+    const int index = photos[k];
+    out.features.descriptors[index] = ToDescriptorMatrix(unions[k]);
+    for (const Keypoint& kp : unions[k].keypoints) {
+      out.features.keypoints[index].emplace_back(kp.x, kp.y);
+    }
+    unions[k].descriptors.release();
+    out.features.features[index] = std::move(unions[k]);
+    out.features.indices.push_back(index);
+    out.added[index] = std::move(added[k]);
+  }
+  return out;
+}
+
+std::filesystem::path AddedKeypointsPath(const Workspace& workspace, int index) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%05d.added.feat", index);
+  return workspace.StageDir("matching") / name;
+}
+
+// Verifies `pairs` (indices into `chosen`) with the affine features and replaces a pair by
+// its new verification when that passes KeepRetry with more inliers than the pair had.
+// Returns the replaced ones.
+std::vector<std::size_t> VerifyWithAffineFeatures(const std::vector<std::size_t>& pairs,
+                                                  const std::vector<ImagePair>& chosen,
+                                                  const PairFeatures& affine,
+                                                  const TwoViewGeometryOptions& geometry,
+                                                  StageContext& context,
+                                                  std::vector<VerifiedPair>* verified) {
+  std::vector<VerifiedPair> again(pairs.size());
+  context.progress.Restart(pairs.size(), "pairs (affine-adapted features)");
+  ParallelFor(
+      0, pairs.size(),
+      [&](std::size_t k) {
+        context.cancel.ThrowIfCanceled();
+        again[k] = VerifyPair(chosen[pairs[k]], affine, geometry, MatchingOptions().max_ratio,
+                              context.cancel);
+        context.progress.Advance();
+      },
+      context.options.num_threads);
+  std::vector<std::size_t> replaced;
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    VerifiedPair& before = (*verified)[pairs[k]];
+    VerifiedPair& after = again[k];
+    const int had =
+        before.matches.matches.empty() ? 0 : std::max(before.num_inliers_F, before.num_inliers_H);
+    const bool keep = !after.matches.matches.empty() && after.num_inliers_F > had &&
+                      KeepRetry(after.type == TwoViewModelType::kFundamental, after.num_inliers_F,
+                                after.num_putative, WeakPairOptions());
+    LOG_DEBUG << "matching: photos " << after.matches.image1 << " and " << after.matches.image2
+              << " with affine-adapted features: " << after.num_inliers_F << " inliers of F of "
+              << after.num_putative << " putative (" << had << " before)" << (keep ? ", kept" : "");
+    if (!keep) continue;
+    after.affine = true;
+    after.retried = before.retried;
+    before = std::move(after);
+    replaced.push_back(pairs[k]);
+  }
+  return replaced;
+}
+
+// Trying harder still (issue 13): the weak pairs PairsToRetry chooses after the looser ratio
+// test are matched again with affine-adapted features (core/feature/affine_features.h) at the
+// default ratio; a result is kept when it passes KeepRetry with more inliers than the pair
+// had. Then the other verified pairs among the photos of a kept pair are matched again the
+// same way, so that the bridge's new keypoints also get matches to the photos beyond it: a
+// bridge whose points no third photo sees gives the mapper no scale to go on (the first 8
+// templeSparseRing photos: 9 shared points instead of hundreds). Photos with enough strong
+// pairs are never touched, so well-connected sets keep their matches to the bit. Returns the
+// pairs replaced.
+int RetryWithAffineFeatures(const std::vector<ImagePair>& chosen,
+                            const std::vector<IngestedImage>& images,
+                            const TwoViewGeometryOptions& geometry,
+                            StageContext& context,
+                            std::vector<VerifiedPair>* verified) {
+  const AffinePlan plan = PlanAffineRetry(*verified);
+  if (plan.pairs.empty()) return 0;
+  const Timer timer;
+  const AffineFeatures affine =
+      ExtractAffineFeaturesOf(plan.photos, images, AffineFeatureOptions(), context);
+  std::vector<std::size_t> kept =
+      VerifyWithAffineFeatures(plan.pairs, chosen, affine.features, geometry, context, verified);
+  const std::size_t bridges = kept.size();
+  std::set<int> touched;
+  for (std::size_t k : kept) {
+    touched.insert((*verified)[k].matches.image1);
+    touched.insert((*verified)[k].matches.image2);
+  }
+  const std::set<std::size_t> tried(plan.pairs.begin(), plan.pairs.end());
+  std::vector<std::size_t> around;
+  for (std::size_t k = 0; k < verified->size(); ++k) {
+    if (tried.count(k)) continue;
+    const VerifiedPair& p = (*verified)[k];
+    const int a = p.matches.image1, b = p.matches.image2;
+    if (!p.affine && !p.matches.matches.empty() && affine.added.count(a) && affine.added.count(b) &&
+        (touched.count(a) || touched.count(b))) {
+      around.push_back(k);
+    }
+  }
+  const std::vector<std::size_t> more =
+      VerifyWithAffineFeatures(around, chosen, affine.features, geometry, context, verified);
+  kept.insert(kept.end(), more.begin(), more.end());
+  std::set<int> used;
+  for (std::size_t k : kept) {
+    used.insert((*verified)[k].matches.image1);
+    used.insert((*verified)[k].matches.image2);
+  }
+  std::size_t added = 0;
+  for (int photo : used) {
+    const FeatureSet& extra = affine.added.at(photo);
+    if (extra.keypoints.empty()) continue;
+    const Status written = WriteFeatures(AddedKeypointsPath(context.workspace, photo), extra);
+    THROW_CHECK(written.ok()) << written.message();
+    added += extra.size();
+  }
+  LOG_INFO << "matching: " << plan.pairs.size() << " weak pairs of " << plan.photos.size()
+           << " photos matched again with affine-adapted features; " << bridges << " kept, then "
+           << more.size() << " of " << around.size() << " pairs around them improved; " << added
+           << " keypoints added to " << used.size() << " photos ("
+           << static_cast<int>(timer.ElapsedSeconds()) << " s)";
+  return static_cast<int>(kept.size());
+}
+
 // The verified pairs sorted out: those with matches (kept), one summary.json record per pair,
 // and the counts.
 struct MatchingTally {
@@ -264,6 +499,7 @@ struct MatchingTally {
   int num_f = 0, num_h = 0;
   std::size_t inliers = 0, guided = 0;
   int retried = 0;
+  int affine = 0;
 };
 
 MatchingTally Tally(std::vector<VerifiedPair>* verified) {
@@ -276,6 +512,7 @@ MatchingTally Tally(std::vector<VerifiedPair>* verified) {
          {"putative", p.num_putative},
          {"guided", p.num_guided},
          {"retried", p.retried},
+         {"affine", p.affine},
          {"inliers_F", p.num_inliers_F},
          {"inliers_H", p.num_inliers_H},
          {"gric_F", std::isfinite(p.gric_F) ? nlohmann::json(p.gric_F) : nlohmann::json()},
@@ -284,6 +521,7 @@ MatchingTally Tally(std::vector<VerifiedPair>* verified) {
     if (p.type == TwoViewModelType::kHomography) ++tally.num_h;
     tally.guided += p.num_guided;
     tally.retried += p.retried;
+    tally.affine += p.affine;
     if (!p.matches.matches.empty()) {
       tally.inliers += p.matches.matches.size();
       tally.usable.push_back(std::move(p));
@@ -339,6 +577,7 @@ StageResult MatchingStage::Run(StageContext& context) const {
       },
       context.options.num_threads);
   RetryWeakPairs(*chosen, features, geometry, context, &verified);
+  RetryWithAffineFeatures(*chosen, *images, geometry, context, &verified);
 
   const MatchingTally tally = Tally(&verified);
   if (Status s =
@@ -350,7 +589,8 @@ StageResult MatchingStage::Run(StageContext& context) const {
            << " with epipolar geometry, " << tally.num_h << " planar or rotation-only, "
            << tally.inliers << " inlier matches (" << tally.guided
            << " of them from guided matching); " << tally.retried
-           << " weak pairs kept from a second verification at a looser ratio test";
+           << " weak pairs kept from a second verification at a looser ratio test, " << tally.affine
+           << " from affine-adapted features";
   if (tally.usable.empty()) {
     return StageResult::Degenerate("no pair of photos could be matched: do the photos overlap?");
   }
@@ -359,7 +599,21 @@ StageResult MatchingStage::Run(StageContext& context) const {
                                {"homography", tally.num_h},
                                {"inlier_matches", tally.inliers},
                                {"guided_matches", tally.guided},
-                               {"retried_pairs", tally.retried}});
+                               {"retried_pairs", tally.retried},
+                               {"affine_pairs", tally.affine}});
+}
+
+Result<std::vector<Keypoint>> ReadMatchedKeypoints(const Workspace& workspace, int index) {
+  auto features = ReadImageFeatures(workspace, index);
+  if (!features.ok()) return features.status();
+  std::vector<Keypoint> keypoints = std::move(features->keypoints);
+  const std::filesystem::path added = AddedKeypointsPath(workspace, index);
+  if (std::filesystem::exists(added)) {
+    auto more = ReadFeatures(added);
+    if (!more.ok()) return more.status();
+    keypoints.insert(keypoints.end(), more->keypoints.begin(), more->keypoints.end());
+  }
+  return keypoints;
 }
 
 Result<std::vector<VerifiedPair>> ReadVerifiedPairs(const Workspace& workspace) {

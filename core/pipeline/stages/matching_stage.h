@@ -10,6 +10,7 @@
 #define RECONDUIT_CORE_PIPELINE_STAGES_MATCHING_STAGE_H_
 
 #include "core/estimators/two_view_geometry.h"
+#include "core/feature/features.h"
 #include "core/pipeline/stage.h"
 #include "core/sfm/tracks.h"
 
@@ -35,6 +36,9 @@ struct VerifiedPair {
   int num_guided = 0;
   // Verified again at a looser ratio test (few inliers at the default; not stored either).
   bool retried = false;
+  // Matched again with affine-adapted features (not stored either): some of its matches may
+  // refer to keypoints the matching stage added to the photo (ReadMatchedKeypoints).
+  bool affine = false;
 };
 
 class MatchingStage : public Stage {
@@ -47,6 +51,11 @@ class MatchingStage : public Stage {
 };
 
 Result<std::vector<VerifiedPair>> ReadVerifiedPairs(const Workspace& workspace);
+
+// Photo `index`'s keypoints as the matches in pairs.bin number them: its SIFT keypoints (the
+// features stage), then those the matching stage added from affine-adapted features
+// (work/matching/NNNNN.added.feat), if any.
+Result<std::vector<Keypoint>> ReadMatchedKeypoints(const Workspace& workspace, int index);
 
 }  // namespace reconduit
 

@@ -121,12 +121,12 @@ Status AddImagesByCamera(const Workspace& workspace,
     auto [it, inserted] =
         camera_of_key.try_emplace(image.camera_key, static_cast<int>(camera_of_key.size()));
     (*members)[it->second].push_back(&image);
-    auto features = ReadImageFeatures(workspace, image.index);
-    if (!features.ok()) return features.status();
+    auto keypoints = ReadMatchedKeypoints(workspace, image.index);
+    if (!keypoints.ok()) return keypoints.status();
     MapperImage mapper_image;
     mapper_image.name = image.name;
     mapper_image.camera_id = it->second;
-    for (const Keypoint& kp : features->keypoints) {
+    for (const Keypoint& kp : *keypoints) {
       mapper_image.keypoints.emplace_back(kp.x, kp.y);
       mapper_image.keypoint_stddevs.push_back(KeypointStddev(kp));
     }
