@@ -17,6 +17,8 @@ constexpr char kUsage[] =
     "  reconduit options\n"
     "  reconduit benchmark <images_dir> [--gt PATH] [--colmap] [--until STAGE] [--options FILE]\n"
     "                      [--work DIR] [--threads N] [--resume]\n"
+    "  reconduit synthetic <out_dir> [--rows R] [--cols C] [--seed S] [--width W] [--height H]\n"
+    "                      [--focal F]\n"
     "\n"
     "reconstruct  runs the pipeline on every file in <images_dir> (files that are not usable\n"
     "             photos are reported and skipped) and writes the results to <out_dir>.\n"
@@ -36,6 +38,9 @@ constexpr char kUsage[] =
     "             run in the same --work folder (those whose options did not change).\n"
     "             --options, --work and --threads as for reconstruct (default work folder\n"
     "             <tmp>/reconduit-benchmark).\n"
+    "synthetic    renders an aerial survey of a hilly terrain (R x C photos, default 5 x 10,\n"
+    "             800 x 600 px, focal 700 px, ~75 % overlap along a row) into <out_dir>/images\n"
+    "             with its exact cameras in <out_dir>/cameras_par.txt, for `benchmark --gt`.\n"
     "\n"
     "`reconduit <command> --help` prints this text. Exit status: 0 success, 1 the pipeline\n"
     "failed, 2 bad command line, 130 canceled (reconstruct).\n";

@@ -4,6 +4,7 @@
 //                         [--work DIR] [--threads N]
 //   reconduit options            (every pipeline option, as JSON)
 //   reconduit benchmark ...      (cli/benchmark.h)
+//   reconduit synthetic ...      (cli/synthetic.h: a rendered photo set with its cameras)
 //
 // The output folder receives exactly the files result.zip would hold. Intermediate files go
 // to a work folder (default "<out_dir>.work"); running the same command again resumes after
@@ -17,6 +18,7 @@
 
 #include "cli/benchmark.h"
 #include "cli/cli_common.h"
+#include "cli/synthetic.h"
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
@@ -218,6 +220,7 @@ int main(int argc, char** argv) {
   try {
     if (command == "reconstruct") return Reconstruct(args);
     if (command == "benchmark") return RunBenchmark(args);
+    if (command == "synthetic") return RunSynthetic(args);
     if (command == "options") {
       std::cout << DescribePipelineOptions().dump(2) << "\n";
       return 0;

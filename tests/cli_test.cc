@@ -1,6 +1,8 @@
 // The `reconduit` command line as a user runs it: bad input gets exit status 2 and a message
 // that names the problem; the benchmark compares only the ground-truth cameras of the photos
 // it was given.
+#include "core/eval/ground_truth.h"
+
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -136,6 +138,33 @@ TEST_F(CliTest, BenchmarkComparesOnlyTheGivenPhotos) {
   EXPECT_EQ(outcome.exit_status, 0) << outcome.output;
   EXPECT_NE(outcome.output.find("2 of its 3 cameras"), std::string::npos) << outcome.output;
   EXPECT_NE(outcome.output.find("ingest"), std::string::npos) << outcome.output;
+}
+
+// `synthetic` renders a small survey: one JPEG per camera and their exact cameras, which the
+// benchmark reads back; it refuses a folder that holds anything, and bad values.
+TEST_F(CliTest, SyntheticWritesPhotosAndTheirCameras) {
+  const fs::path out = root_ / "survey";
+  const Outcome outcome = RunCli("synthetic " + Quoted(out) +
+                                 " --rows 2 --cols 3 --width 160 --height 120 --focal 140");
+  ASSERT_EQ(outcome.exit_status, 0) << outcome.output;
+  auto cameras = ReadMiddleburyPar(out / "cameras_par.txt");
+  ASSERT_TRUE(cameras.ok()) << cameras.status();
+  ASSERT_EQ(cameras->size(), 6u);
+  for (const GroundTruthCamera& camera : *cameras) {
+    const cv::Mat photo = cv::imread((out / "images" / camera.name).string());
+    ASSERT_FALSE(photo.empty()) << camera.name;
+    EXPECT_EQ(photo.cols, 160);
+    EXPECT_EQ(photo.rows, 120);
+    EXPECT_DOUBLE_EQ(camera.K(0, 0), 140.0);
+    EXPECT_NEAR(camera.cam_from_world.CenterInWorld().z(), 10.0, 0.5 + 1e-9);
+  }
+  const Outcome again = RunCli("synthetic " + Quoted(out));
+  EXPECT_EQ(again.exit_status, 2);
+  EXPECT_NE(again.output.find("is not empty"), std::string::npos) << again.output;
+  const Outcome bad = RunCli("synthetic " + Quoted(root_ / "other") + " --rows 0");
+  EXPECT_EQ(bad.exit_status, 2);
+  EXPECT_NE(bad.output.find("rows must be >= 1"), std::string::npos) << bad.output;
+  EXPECT_FALSE(fs::exists(root_ / "other"));
 }
 
 }  // namespace

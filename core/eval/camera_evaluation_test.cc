@@ -1,5 +1,7 @@
 #include "core/eval/camera_evaluation.h"
 
+#include "core/eval/ground_truth.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -119,6 +121,34 @@ TEST(ReadGroundTruth, StrechaAndMiddleburyAgreeOnConventions) {
   EXPECT_FALSE(ReadGroundTruth(dir / "bad_par.txt").ok());
   EXPECT_FALSE(ReadGroundTruth(dir / "missing").ok());
   fs::remove_all(dir);
+}
+
+TEST(FormatMiddleburyPar, ReadsBackTheSameCameras) {
+  std::vector<GroundTruthCamera> cameras(2);
+  cameras[0].name = "0000.jpg";
+  cameras[0].K << 700, 0, 399.5, 0, 700, 299.5, 0, 0, 1;
+  cameras[0].cam_from_world =
+      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized())),
+              Eigen::Vector3d(0.1, -2.5, 10.25));
+  cameras[1].name = "0001.jpg";
+  cameras[1].K << 1234.5, 0, 10, 0, 1234.5, 20, 0, 0, 1;
+  const fs::path file =
+      fs::temp_directory_path() / ("reconduit_par_test_" + std::to_string(getpid()) + "_par.txt");
+  std::ofstream(file) << FormatMiddleburyPar(cameras);
+  auto read = ReadMiddleburyPar(file);
+  fs::remove(file);
+  ASSERT_TRUE(read.ok()) << read.status();
+  ASSERT_EQ(read->size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ((*read)[i].name, cameras[i].name);
+    EXPECT_LT(((*read)[i].K - cameras[i].K).norm(), 1e-9);
+    EXPECT_LT(
+        ((*read)[i].cam_from_world.translation - cameras[i].cam_from_world.translation).norm(),
+        1e-12);
+    EXPECT_LT(
+        (*read)[i].cam_from_world.rotation.angularDistance(cameras[i].cam_from_world.rotation),
+        1e-12);
+  }
 }
 
 TEST(ReadGroundTruth, DatasetsWhenPresent) {

@@ -88,6 +88,25 @@ Result<std::vector<GroundTruthCamera>> ReadMiddleburyPar(const fs::path& file) {
   return cameras;
 }
 
+std::string FormatMiddleburyPar(const std::vector<GroundTruthCamera>& cameras) {
+  std::ostringstream out;
+  out.precision(17);
+  out << cameras.size() << "\n";
+  for (const GroundTruthCamera& camera : cameras) {
+    out << camera.name;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) out << " " << camera.K(r, c);
+    }
+    const Eigen::Matrix3d rotation = camera.cam_from_world.rotation.toRotationMatrix();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) out << " " << rotation(r, c);
+    }
+    const Eigen::Vector3d& t = camera.cam_from_world.translation;
+    out << " " << t.x() << " " << t.y() << " " << t.z() << "\n";
+  }
+  return out.str();
+}
+
 Result<std::vector<GroundTruthCamera>> ReadGroundTruth(const fs::path& path) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) return ReadStrechaCameras(path);

@@ -31,6 +31,10 @@ struct GroundTruthCamera {
 
 Result<std::vector<GroundTruthCamera>> ReadStrechaCameras(const std::filesystem::path& folder);
 Result<std::vector<GroundTruthCamera>> ReadMiddleburyPar(const std::filesystem::path& file);
+// The Middlebury text of `cameras` (names without white space), at full double precision:
+// ReadMiddleburyPar reads back the same names, K and poses. Synthetic sets carry their exact
+// cameras in it (`reconduit synthetic`).
+std::string FormatMiddleburyPar(const std::vector<GroundTruthCamera>& cameras);
 // A folder is read as Strecha, a file as Middlebury.
 Result<std::vector<GroundTruthCamera>> ReadGroundTruth(const std::filesystem::path& path);
 
