@@ -53,6 +53,13 @@ summary = sparse.get("summary", {})
 print(f'{n} {matching["seconds"]:.1f} {sparse["seconds"]:.1f} '
       f'{matching["summary"]["pairs"]} {summary.get("registered", "?")} '
       f'{stages["features"]["seconds"]:.1f} {report["peak_memory_bytes"] / 2**30:.2f}')
+t = summary.get("seconds", {})
+if t:
+    print(f'  mapping of {n} photos: registration {t["registration"]:.1f} s '
+          f'({t["registration_tries"]} tries), triangulation {t["triangulation"]:.1f} s, local '
+          f'adjustments {t["local_adjustment"]:.1f} s ({t["local_adjustments"]}), global '
+          f'adjustments {t["global_adjustment"]:.1f} s ({t["global_adjustments"]})',
+          file=sys.stderr)
 PY
 )
   summary+=("$line")

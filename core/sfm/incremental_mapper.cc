@@ -31,6 +31,19 @@ double Median(std::vector<double> values) {
   return *middle;
 }
 
+// Adds the seconds from its construction to its destruction to *seconds.
+class ScopedSeconds {
+ public:
+  explicit ScopedSeconds(double* seconds) : seconds_(seconds) {}
+  ~ScopedSeconds() { *seconds_ += timer_.ElapsedSeconds(); }
+  ScopedSeconds(const ScopedSeconds&) = delete;
+  ScopedSeconds& operator=(const ScopedSeconds&) = delete;
+
+ private:
+  double* seconds_;
+  Timer timer_;
+};
+
 class Mapper {
  public:
   Mapper(const MapperInput& input,
@@ -58,6 +71,7 @@ class Mapper {
   }
 
   std::vector<Reconstruction> Run() {
+    const Timer run_timer;
     std::vector<GrownModel> grown;
     progress_.Restart(input_.images.size(), "registering photos");
     while (true) {
@@ -115,6 +129,13 @@ class Mapper {
       }
       summary_->mean_reprojection_error_px = observations ? error_sum / observations : 0.0;
     }
+    times_.total = run_timer.ElapsedSeconds();
+    LOG_INFO << "sfm: mapping took " << times_.total << " s: registration " << times_.registration
+             << " s (" << times_.registration_tries << " tries), triangulation "
+             << times_.triangulation << " s, local adjustments " << times_.local_adjustment
+             << " s (" << times_.local_adjustments << "), global adjustments "
+             << times_.global_adjustment << " s (" << times_.global_adjustments << ")";
+    if (summary_ != nullptr) summary_->times = times_;
     return models;
   }
 
@@ -475,6 +496,8 @@ class Mapper {
   }
 
   bool TryRegister(Reconstruction* model, int image_id, std::string* why) {
+    const ScopedSeconds timed(&times_.registration);
+    ++times_.registration_tries;
     const MapperImage& image = input_.images.at(image_id);
     if (!model->cameras.count(image.camera_id)) {
       model->cameras[image.camera_id] = cameras_.at(image.camera_id);
@@ -704,7 +727,11 @@ class Mapper {
     ba.refine_focal = ba.refine_k1 = ba.refine_k2 = false;
     ba.loss = BundleAdjustmentLoss::kCauchy;
     ba.max_num_iterations = 25;
-    BundleAdjust(ba, cancel_, model);
+    {
+      const ScopedSeconds timed(&times_.local_adjustment);
+      ++times_.local_adjustments;
+      BundleAdjust(ba, cancel_, model);
+    }
     FilterPoints(model, std::set<int>(variable.begin(), variable.end()));
 
     if (model->images.size() >= global_ba_growth_threshold()) {
@@ -740,6 +767,8 @@ class Mapper {
   }
 
   void GlobalAdjust(Reconstruction* model, bool final) {
+    const ScopedSeconds timed(&times_.global_adjustment);
+    ++times_.global_adjustments;
     BundleAdjustmentOptions ba = GlobalBundleOptions(*model, final);
     const bool principal_point =
         final && options_.principal_point != PrincipalPointMode::kCenter &&
@@ -815,6 +844,7 @@ class Mapper {
     ba.refine_principal_point = principal_point_refined_;
     ba.estimate_intrinsics_stddev = true;
     ba.max_num_iterations = 3;  // From an optimum less a few points: a polish.
+    const ScopedSeconds timed(&times_.global_adjustment);
     const BundleAdjustmentSummary summary = BundleAdjust(ba, cancel_, model);
     LOG_INFO << "sfm: final adjustment of " << model->images.size()
              << " photos: " << summary.BriefReport();
@@ -838,6 +868,7 @@ class Mapper {
 
   // Triangulates every track this photo observes that has no point yet.
   void TriangulateImage(Reconstruction* model, int image_id) {
+    const ScopedSeconds timed(&times_.triangulation);
     const std::vector<int>& tracks = track_of_.at(image_id);
     for (int kp = 0; kp < static_cast<int>(tracks.size()); ++kp) {
       const int track = tracks[kp];
@@ -979,6 +1010,7 @@ class Mapper {
   std::map<int, Camera> cameras_;  // Initial intrinsics (input_.cameras unless replaced).
   // The intrinsics' standard deviations from the current model's final adjustment.
   std::map<int, IntrinsicsStddev> final_stddev_;
+  MapperSummary::Times times_;
   bool principal_point_refined_ = false;  // By the current model's final adjustment.
   std::size_t max_images_ = std::numeric_limits<std::size_t>::max();  // Per model (trials).
   int init_image1_ = kInvalidId;

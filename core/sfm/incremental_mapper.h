@@ -198,6 +198,20 @@ struct MapperSummary {
   int num_merges = 0;
   int num_reregistered = 0;
   std::vector<std::string> log;  // One line per notable event (initial pairs, failures).
+  // Where the mapping time went (seconds; the focal search's trial models are not counted):
+  // PnP registration tries, triangulation, local and global bundle adjustments (the global
+  // ones with the final adjustment and its intrinsics' precision, and the principal-point
+  // decision), and the whole run (with what the others leave out: merges, filtering).
+  struct Times {
+    double registration = 0.0;
+    double triangulation = 0.0;
+    double local_adjustment = 0.0;
+    double global_adjustment = 0.0;
+    double total = 0.0;
+    int registration_tries = 0;
+    int local_adjustments = 0;
+    int global_adjustments = 0;
+  } times;
   // Per camera id: the focal length the reconstruction started from after the focal search
   // (only cameras that were searched).
   std::map<int, double> searched_focal;

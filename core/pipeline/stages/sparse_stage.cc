@@ -378,6 +378,15 @@ StageResult SparseStage::Run(StageContext& context) const {
       {"registered_again", summary.num_reregistered},
       {"points", best.points.size()},
       {"mean_reprojection_error_px", best.MeanReprojectionError()},
+      {"seconds",
+       {{"registration", summary.times.registration},
+        {"registration_tries", summary.times.registration_tries},
+        {"triangulation", summary.times.triangulation},
+        {"local_adjustment", summary.times.local_adjustment},
+        {"local_adjustments", summary.times.local_adjustments},
+        {"global_adjustment", summary.times.global_adjustment},
+        {"global_adjustments", summary.times.global_adjustments},
+        {"mapping", summary.times.total}}},
       {"cameras", calibration}};
   if (!left_out.empty()) summary_json["left_out"] = left_out.ToJson();
   return StageResult::Success(std::move(summary_json));
