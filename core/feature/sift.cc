@@ -133,6 +133,13 @@ bool SiftOptions::Check(std::string* error) const {
     m << "grid_cells must be in [1, 64], got " << grid_cells;
   } else if (!(contrast_threshold > 0.0 && contrast_threshold <= 1.0)) {
     m << "contrast_threshold must be in (0, 1], got " << contrast_threshold;
+  } else if (min_features < 0 || min_features > kMaxMaxFeatures) {
+    m << "min_features must be in [0, " << kMaxMaxFeatures << "], got " << min_features;
+  } else if (!(min_contrast_threshold > 0.0 && min_contrast_threshold <= contrast_threshold)) {
+    m << "min_contrast_threshold must be in (0, contrast_threshold], got "
+      << min_contrast_threshold;
+  } else if (upsample_below_side < 0 || upsample_below_side > 20000) {
+    m << "upsample_below_side must be in [0, 20000], got " << upsample_below_side;
   } else if (!(edge_threshold >= 1.0 && edge_threshold <= 100.0)) {
     m << "edge_threshold must be in [1, 100], got " << edge_threshold;
   } else if (octave_layers < 1 || octave_layers > 8) {
@@ -211,9 +218,57 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options)
   return ExtractSiftFeatures(image, options, image.size());
 }
 
+namespace {
+
+// The candidates of `working`, with the passes of SiftOptions::min_features: the contrast
+// threshold halves while a pass finds fewer than min_features, then a small working copy is
+// detected at twice its size at the lowest threshold. Keeps the pass with the most.
+Candidates DetectAdaptively(const cv::Mat& working,
+                            const SiftOptions& options,
+                            SiftDetection* detection) {
+  const auto detect = [&](const cv::Mat& image, double to_working, double contrast) {
+    cv::Ptr<cv::SIFT> sift =
+        cv::SIFT::create(0, options.octave_layers, contrast, options.edge_threshold, 1.6);
+    Candidates found;
+    DetectLevel(image, to_working, to_working, options, *sift, &found);
+    ++detection->passes;
+    return found;
+  };
+  double contrast = options.contrast_threshold;
+  Candidates best = detect(working, 1.0, contrast);
+  detection->contrast_threshold = contrast;
+  const int wanted = std::min(options.min_features, options.max_features);
+  const auto enough = [&] { return static_cast<int>(best.keypoints.size()) >= wanted; };
+  while (!enough() && contrast > options.min_contrast_threshold) {
+    contrast = std::max(options.min_contrast_threshold, 0.5 * contrast);
+    Candidates more = detect(working, 1.0, contrast);
+    if (more.keypoints.size() > best.keypoints.size()) {
+      best = std::move(more);
+      detection->contrast_threshold = contrast;
+    }
+  }
+  if (!enough() && std::max(working.cols, working.rows) < options.upsample_below_side) {
+    // Pixel centres at integers in both copies (INTER_LINEAR maps them so): to_working 0.5.
+    cv::Mat doubled;
+    cv::resize(working, doubled, cv::Size(2 * working.cols, 2 * working.rows), 0, 0,
+               cv::INTER_LINEAR);
+    Candidates more = detect(doubled, 0.5, contrast);
+    if (more.keypoints.size() > best.keypoints.size()) {
+      best = std::move(more);
+      detection->contrast_threshold = contrast;
+      detection->upsampled = true;
+    }
+  }
+  detection->candidates = static_cast<int>(best.keypoints.size());
+  return best;
+}
+
+}  // namespace
+
 FeatureSet ExtractSiftFeatures(const cv::Mat& image,
                                const SiftOptions& options,
-                               cv::Size original_size) {
+                               cv::Size original_size,
+                               SiftDetection* detection) {
   std::string error;
   THROW_CHECK(options.Check(&error)) << error;
   THROW_CHECK(!image.empty() && image.depth() == CV_8U) << "an 8-bit image is required";
@@ -238,12 +293,13 @@ FeatureSet ExtractSiftFeatures(const cv::Mat& image,
   const double sx = static_cast<double>(working.cols) / original_size.width;
   const double sy = static_cast<double>(working.rows) / original_size.height;
 
-  cv::Ptr<cv::SIFT> sift = cv::SIFT::create(0, options.octave_layers, options.contrast_threshold,
-                                            options.edge_threshold, 1.6);
-  Candidates candidates;
-  DetectLevel(working, 1.0, 1.0, options, *sift, &candidates);
+  SiftDetection local_detection;
+  if (detection == nullptr) detection = &local_detection;
+  *detection = SiftDetection();
+  Candidates candidates = DetectAdaptively(working, options, detection);
   LOG_DEBUG << "sift: " << candidates.keypoints.size() << " candidates in " << working.cols << "x"
-            << working.rows;
+            << working.rows << " (contrast " << detection->contrast_threshold
+            << (detection->upsampled ? ", upsampled" : "") << ")";
   const std::vector<int> chosen =
       SelectSpreadKeypoints(candidates.keypoints, working.cols, working.rows, options.max_features,
                             options.spread_fraction, options.grid_cells);

@@ -52,6 +52,22 @@ struct SiftOptions {
   // more candidates in low-contrast areas. COLMAP's default peak threshold 0.02/3 corresponds
   // to 0.02 here. (0, 1]
   double contrast_threshold = 0.02;
+  // Few-feature photos (a small object on a plain background, a low-contrast wall): while a
+  // photo yields fewer than `min_features` candidates, SIFT runs again with half the contrast
+  // threshold, down to `min_contrast_threshold`; a working copy whose longer side is below
+  // `upsample_below_side` that is still short is then detected at twice its size (finer
+  // scales). The pass with the most candidates is kept; at most max_features are
+  // asked for. 0 disables it. [0, kMaxMaxFeatures]
+  // Measured: lowering the threshold for photos that have ~1,300 candidates (the temple's)
+  // costs accuracy (templeSparseRing's centres 0.19 -> 0.40 % of the radius), and detecting
+  // them at twice their size lets false matches bridge its wide gaps (every second photo:
+  // 3 -> 18 deg); for a dim ring of 240-candidate photos the two together turn a broken
+  // model (33 deg) into 1.2 deg (tests/few_features_test). Hence a low default.
+  int min_features = kDefaultMinFeatures;
+  // (0, contrast_threshold]
+  double min_contrast_threshold = 0.005;
+  // [0, 20000]; 0 never upsamples.
+  int upsample_below_side = 1000;
   // Edge-response threshold (Lowe's r). [1, 100]
   double edge_threshold = 10.0;
   // Scale levels per octave. [1, 8]
@@ -63,14 +79,24 @@ struct SiftOptions {
   bool Check(std::string* error) const;
 };
 
+// How a photo's features were detected (the pass kept; see min_features).
+struct SiftDetection {
+  int candidates = 0;               // SIFT candidates before the selection.
+  double contrast_threshold = 0.0;  // The threshold of the pass kept.
+  bool upsampled = false;           // Detected on a copy of twice the working size.
+  int passes = 0;                   // SIFT passes run.
+};
+
 // Detects and describes features in `image` (8-bit, grey or BGR, original resolution).
 // Deterministic for the same input.
 FeatureSet ExtractSiftFeatures(const cv::Mat& image, const SiftOptions& options);
 // The same for `image`, a downscaled copy of a photo of `original_size` pixels (read at its
-// working size): keypoints and image size are reported in the original's pixels.
+// working size): keypoints and image size are reported in the original's pixels. `detection`,
+// when given, says how they were found.
 FeatureSet ExtractSiftFeatures(const cv::Mat& image,
                                const SiftOptions& options,
-                               cv::Size original_size);
+                               cv::Size original_size,
+                               SiftDetection* detection = nullptr);
 
 // Chooses at most `max_features` of `candidates` (any order): the strongest
 // (1 - spread_fraction) by response, then round-robin the best remaining one per grid cell.

@@ -189,7 +189,8 @@ void CheckBlobCentres(int max_image_side,
                       double tolerance_px,
                       int max_tile_pixels = 1 << 30,
                       double min_blob_sigma = 2.0,
-                      double max_blob_sigma = 4.5) {
+                      double max_blob_sigma = 4.5,
+                      bool upsampled = false) {
   const int width = 800, height = 600;
   cv::RNG rng(11);
   cv::Mat image(height, width, CV_32F, cv::Scalar(60));
@@ -213,7 +214,12 @@ void CheckBlobCentres(int max_image_side,
   SiftOptions options;
   options.max_image_side = max_image_side;
   options.max_tile_pixels = max_tile_pixels;
-  const FeatureSet features = ExtractSiftFeatures(bytes, options);
+  // 108 blobs: far fewer candidates than min_features, which makes the 800 x 600 picture be
+  // detected again at twice its size when `upsampled`, and never otherwise.
+  if (!upsampled) options.min_features = 0;
+  SiftDetection detection;
+  const FeatureSet features = ExtractSiftFeatures(bytes, options, bytes.size(), &detection);
+  EXPECT_EQ(detection.upsampled, upsampled);
 
   double sum_dx = 0.0, sum_dy = 0.0;
   int found = 0;
@@ -251,6 +257,81 @@ TEST(ExtractSiftFeatures, BlobCentresWithoutBiasInTiles) {
   CheckBlobCentres(/*max_image_side=*/3200, /*tolerance_px=*/0.03, kMinSiftTilePixels);
   CheckBlobCentres(/*max_image_side=*/3200, /*tolerance_px=*/0.06, kMinSiftTilePixels,
                    /*min_blob_sigma=*/6.0, /*max_blob_sigma=*/8.0);
+}
+
+// Detected at twice the size (few candidates, a small picture): keypoints still sit on the
+// blobs in the picture's own pixels.
+TEST(ExtractSiftFeatures, BlobCentresWithoutBiasWhenUpsampled) {
+  CheckBlobCentres(/*max_image_side=*/3200, /*tolerance_px=*/0.03, 1 << 30, 2.0, 4.5,
+                   /*upsampled=*/true);
+}
+
+// A dim copy of a textured picture (contrast a seventh, as an underexposed photo): detected
+// once at the usual threshold it yields a few hundred keypoints; detected again at lower
+// thresholds, many more, as repeatable under a known homography as those of the bright
+// original.
+TEST(ExtractSiftFeatures, DimPictureIsDetectedAgainAtLowerContrast) {
+  const cv::Mat bright = TexturedImage(1200, 900, 42);
+  cv::Mat dim;
+  bright.convertTo(dim, CV_8U, 1.0 / 7.0, 20.0);
+  cv::Mat h = cv::getRotationMatrix2D(cv::Point2f(600, 450), 20.0, 0.8);
+  h.push_back(cv::Mat((cv::Mat_<double>(1, 3) << 0, 0, 1)));
+  cv::Mat warped;
+  cv::warpPerspective(dim, warped, h, dim.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+
+  SiftOptions once;
+  once.min_features = 0;
+  SiftDetection detection;
+  const FeatureSet plain = ExtractSiftFeatures(dim, once, dim.size(), &detection);
+  EXPECT_EQ(detection.passes, 1);
+  const SiftOptions options;
+  const FeatureSet f1 = ExtractSiftFeatures(dim, options, dim.size(), &detection);
+  std::printf("dim picture: %zu keypoints detected once, %zu after %d passes (contrast %.4f)\n",
+              plain.size(), f1.size(), detection.passes, detection.contrast_threshold);
+  EXPECT_GT(detection.passes, 1);
+  EXPECT_LT(detection.contrast_threshold, options.contrast_threshold);
+  EXPECT_FALSE(detection.upsampled);  // 1200 px: above upsample_below_side.
+  EXPECT_GT(f1.size(), 2 * plain.size());
+
+  // The bright original is detected once.
+  ExtractSiftFeatures(bright, options, bright.size(), &detection);
+  EXPECT_EQ(detection.passes, 1);
+
+  const FeatureSet f2 = ExtractSiftFeatures(warped, options);
+  cv::Mat d1, d2;
+  f1.descriptors.convertTo(d1, CV_32F);
+  f2.descriptors.convertTo(d2, CV_32F);
+  std::vector<std::vector<cv::DMatch>> knn;
+  cv::BFMatcher(cv::NORM_L2).knnMatch(d1, d2, knn, 2);
+  int matches = 0, correct = 0;
+  for (const auto& m : knn) {
+    if (m.size() < 2 || m[0].distance > 0.8f * m[1].distance) continue;
+    ++matches;
+    const Keypoint& a = f1.keypoints[m[0].queryIdx];
+    const Keypoint& b = f2.keypoints[m[0].trainIdx];
+    const cv::Vec3d p = cv::Matx33d(h) * cv::Vec3d(a.x, a.y, 1.0);
+    if (std::hypot(p[0] / p[2] - b.x, p[1] / p[2] - b.y) < 1.5) ++correct;
+  }
+  EXPECT_GT(matches, 300);
+  EXPECT_GT(correct, 0.9 * matches) << correct << " of " << matches;
+}
+
+TEST(SiftOptions, ChecksTheFewFeatureSettings) {
+  std::string error;
+  SiftOptions options;
+  options.min_features = kMaxMaxFeatures;  // Above max_features: asks for max_features.
+  EXPECT_TRUE(options.Check(&error)) << error;
+  options.min_features = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("min_features"), std::string::npos) << error;
+  options = SiftOptions();
+  options.min_contrast_threshold = 2 * options.contrast_threshold;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("min_contrast_threshold"), std::string::npos) << error;
+  options = SiftOptions();
+  options.upsample_below_side = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("upsample_below_side"), std::string::npos) << error;
 }
 
 TEST(ExtractSiftFeatures, Deterministic) {

@@ -13,6 +13,10 @@ inline constexpr int kDefaultMaxFeatures = 8192;
 // too few to register it; more than 65536 cost memory and matching time for no gain.
 inline constexpr int kMinMaxFeatures = 256;
 inline constexpr int kMaxMaxFeatures = 65536;
+// Default of min_features: a photo with fewer SIFT candidates is detected again (sift.h).
+// Every photo of fountain-P11, templeSparseRing and kermit has more (the fewest, a temple
+// photo, about 1,080), so they are detected once.
+inline constexpr int kDefaultMinFeatures = 1024;
 
 }  // namespace reconduit
 

@@ -127,6 +127,11 @@ std::vector<OptionSpec> MakeSpecs() {
                                 kMaxMaxFeatures,
                                 "At most this many features per photo, spread over the whole "
                                 "photo."));
+  specs.push_back(IntegerOption(
+      "min_features", &PipelineOptions::min_features, 0, kMaxMaxFeatures,
+      "A photo that yields fewer features than this (a dim photo, a small object on a plain "
+      "background) is searched again at lower contrast, then at twice its size when it is "
+      "smaller than 1000 px. 0 turns it off."));
   specs.push_back(ChoiceOption(
       "principal_point", &PipelineOptions::principal_point, {"auto", "center", "refine"},
       "The principal point of models with 8 or more photos: 'auto' refines it in the final "

@@ -37,6 +37,10 @@ struct PipelineOptions {
   int max_image_side = 3200;
   // At most this many features per photo. [256, 65536]
   int max_features = kDefaultMaxFeatures;
+  // A photo with fewer SIFT candidates than this (capped at max_features) is detected again
+  // at lower contrast thresholds, then, when smaller than 1000 px, at twice its size
+  // (core/feature/sift.h). 0 turns it off. [0, 65536]
+  int min_features = kDefaultMinFeatures;
   // The principal point in the final bundle adjustment of models with 8 or more photos:
   // "auto" refines it when the data clearly support an off-centre point (model selection,
   // see core/sfm/incremental_mapper.h), "center" keeps the image centre, "refine" always

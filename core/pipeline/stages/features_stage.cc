@@ -9,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <stdexcept>
@@ -36,6 +37,7 @@ StageResult FeaturesStage::Run(StageContext& context) const {
   SiftOptions sift;
   sift.max_image_side = context.options.max_image_side;
   sift.max_features = context.options.max_features;
+  sift.min_features = context.options.min_features;
   ImageReaderOptions reader;
   reader.min_side = context.options.min_image_side;
   reader.max_pixels = context.options.max_image_pixels;
@@ -52,6 +54,8 @@ StageResult FeaturesStage::Run(StageContext& context) const {
   cv::setNumThreads(1);
   std::atomic<std::size_t> total{0};
   std::atomic<std::size_t> fewest{SIZE_MAX};
+  std::atomic<int> adapted{0};    // Photos detected again at a lower contrast threshold.
+  std::atomic<int> upsampled{0};  // Of those, photos detected at twice their size.
   context.progress.Restart(accepted.size(), "photos");
   try {
     ParallelFor(
@@ -67,8 +71,18 @@ StageResult FeaturesStage::Run(StageContext& context) const {
                                      pixels.status().message() +
                                      "); it was readable when the job started");
           }
+          SiftDetection detection;
           const FeatureSet features =
-              ExtractSiftFeatures(*pixels, sift, cv::Size(info.width, info.height));
+              ExtractSiftFeatures(*pixels, sift, cv::Size(info.width, info.height), &detection);
+          if (detection.passes > 1) {
+            ++adapted;
+            if (detection.upsampled) ++upsampled;
+            LOG_INFO << "features: " << image.name
+                     << " is short of features: " << detection.candidates << " candidates after "
+                     << detection.passes << " passes (contrast threshold "
+                     << detection.contrast_threshold
+                     << (detection.upsampled ? ", detected at twice its size" : "") << ")";
+          }
           const Status written =
               WriteFeatures(FeaturesPath(context.workspace, image.index), features);
           THROW_CHECK(written.ok()) << written.message();
@@ -89,9 +103,13 @@ StageResult FeaturesStage::Run(StageContext& context) const {
   const double mean = accepted.empty() ? 0.0 : static_cast<double>(total) / accepted.size();
   LOG_INFO << "features: " << total.load() << " in " << accepted.size() << " photos (mean "
            << static_cast<int>(mean) << ", fewest " << (accepted.empty() ? 0 : fewest.load())
-           << ")";
-  return StageResult::Success(
-      {{"photos", accepted.size()}, {"features", total.load()}, {"mean_per_photo", mean}});
+           << "; " << adapted.load() << " short of features detected again, " << upsampled.load()
+           << " of them at twice their size)";
+  return StageResult::Success({{"photos", accepted.size()},
+                               {"features", total.load()},
+                               {"mean_per_photo", mean},
+                               {"adapted_photos", adapted.load()},
+                               {"upsampled_photos", upsampled.load()}});
 }
 
 }  // namespace reconduit
