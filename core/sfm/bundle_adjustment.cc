@@ -91,6 +91,9 @@ bool BundleAdjustmentOptions::Check(std::string* error) const {
     return Fail(error, kName, "max_observations_for_stddev", "must be >= 0",
                 max_observations_for_stddev);
   }
+  if (max_poses_for_stddev < 0) {
+    return Fail(error, kName, "max_poses_for_stddev", "must be >= 0", max_poses_for_stddev);
+  }
   if (scale_fixing_translation_index < -1 || scale_fixing_translation_index > 2) {
     return Fail(error, kName, "scale_fixing_translation_index", "must be -1 (auto), 0, 1 or 2",
                 scale_fixing_translation_index);

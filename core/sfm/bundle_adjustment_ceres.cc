@@ -11,6 +11,9 @@
 #include "core/util/parallel.h"
 #include "core/util/timer.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseCore>
 #include <ceres/covariance.h>
 #include <ceres/iteration_callback.h>
 #include <ceres/loss_function.h>
@@ -196,17 +199,156 @@ std::string TerminationName(ceres::TerminationType type) {
   return ceres::TerminationTypeToString(type);
 }
 
+// A camera's intrinsics covariance, (JᵀJ)⁻¹ of the whitened residuals, in ambient coordinates
+// (entries a subset manifold holds have zero rows and columns).
+using IntrinsicsCovariance = Eigen::Matrix<double, kNumIntrinsics, kNumIntrinsics, Eigen::RowMajor>;
+
+// By ceres::Covariance (sparse QR of the whole Jacobian; detects rank deficiency).
+bool CovarianceBySparseQr(int num_threads,
+                          const std::map<int, double*>& wanted,
+                          ceres::Problem* problem,
+                          std::map<int, IntrinsicsCovariance>* out) {
+  std::vector<std::pair<const double*, const double*>> blocks;
+  for (const auto& [camera_id, block] : wanted) blocks.emplace_back(block, block);
+  ceres::Covariance::Options covariance_options;
+  covariance_options.algorithm_type = ceres::SPARSE_QR;
+  covariance_options.num_threads = num_threads;
+  ceres::Covariance covariance(covariance_options);
+  if (!covariance.Compute(blocks, problem)) return false;
+  for (const auto& [camera_id, block] : wanted) {
+    IntrinsicsCovariance c;
+    if (covariance.GetCovarianceBlock(block, block, c.data())) (*out)[camera_id] = c;
+  }
+  return true;
+}
+
+// By the Schur complement, for problems too large for a QR of the whole Jacobian. With the
+// columns ordered [intrinsics, poses | points], JᵀJ = [U W; Wᵀ V] with V block-diagonal
+// (3 x 3 a point), and the covariance of the camera side is the inverse of
+// S = U - W V⁻¹ Wᵀ (Triggs et al., "Bundle Adjustment — A Modern Synthesis", §6.1). S is
+// dense, (6 n + 5 c)², and factored by Cholesky after a Jacobi scaling (focal, quaternion and
+// distortion columns differ by orders of magnitude); a reciprocal condition number below
+// 1e-14 (a free gauge) means no estimate. A point whose V is singular (rays nearly parallel)
+// enters through the pseudo-inverse of its V, as the QR's rank detection would treat it.
+bool CovarianceBySchur(int num_threads,
+                       const std::map<int, double*>& wanted,
+                       const std::vector<double*>& points,
+                       int max_poses,
+                       ceres::Problem* problem,
+                       std::map<int, IntrinsicsCovariance>* out) {
+  ceres::Problem::EvaluateOptions evaluate;
+  evaluate.num_threads = num_threads;
+  evaluate.apply_loss_function = false;
+  std::set<const double*> camera_side;
+  std::vector<int> offsets;  // Column of each wanted block, in `wanted`'s order.
+  int num_camera_columns = 0;
+  for (const auto& [camera_id, block] : wanted) {
+    evaluate.parameter_blocks.push_back(block);
+    camera_side.insert(block);
+    offsets.push_back(num_camera_columns);
+    num_camera_columns += problem->ParameterBlockTangentSize(block);
+  }
+  const std::set<const double*> is_point(points.begin(), points.end());
+  std::vector<double*> all;
+  problem->GetParameterBlocks(&all);
+  int pose_blocks = 0;
+  for (double* block : all) {
+    if (problem->IsParameterBlockConstant(block) || is_point.contains(block) ||
+        camera_side.contains(block)) {
+      continue;
+    }
+    evaluate.parameter_blocks.push_back(block);
+    num_camera_columns += problem->ParameterBlockTangentSize(block);
+    ++pose_blocks;
+  }
+  if (pose_blocks / 2 > max_poses) {  // A rotation and a translation block a pose.
+    LOG_INFO << "BA: " << pose_blocks / 2 << " variable poses, more than " << max_poses
+             << ": intrinsics precision not estimated";
+    return false;
+  }
+  int num_point_columns = 0;
+  for (double* block : points) {
+    if (problem->IsParameterBlockConstant(block)) continue;
+    THROW_CHECK(problem->ParameterBlockTangentSize(block) == 3) << "a point block of size 3";
+    evaluate.parameter_blocks.push_back(block);
+    num_point_columns += 3;
+  }
+  ceres::CRSMatrix crs;
+  if (!problem->Evaluate(evaluate, nullptr, nullptr, nullptr, &crs)) return false;
+  using SparseMatrix = Eigen::SparseMatrix<double>;  // Column-major: column blocks are cheap.
+  const SparseMatrix jacobian = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::RowMajor>>(
+      crs.num_rows, crs.num_cols, static_cast<Eigen::Index>(crs.values.size()), crs.rows.data(),
+      crs.cols.data(), crs.values.data());
+  const SparseMatrix camera_jacobian = jacobian.leftCols(num_camera_columns);
+  const SparseMatrix point_jacobian = jacobian.rightCols(num_point_columns);
+
+  std::vector<Eigen::Triplet<double>> inverse_v;
+  inverse_v.reserve(static_cast<std::size_t>(num_point_columns) * 3);
+  for (int j = 0; j < num_point_columns; j += 3) {
+    const SparseMatrix columns = point_jacobian.middleCols(j, 3);
+    const Eigen::Matrix3d v = Eigen::Matrix3d(columns.transpose() * columns);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(v);
+    const Eigen::Vector3d values = eigen.eigenvalues();
+    Eigen::Vector3d inverse_values = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) {
+      if (values(k) > 1e-12 * values(2)) inverse_values(k) = 1.0 / values(k);
+    }
+    const Eigen::Matrix3d inverse =
+        eigen.eigenvectors() * inverse_values.asDiagonal() * eigen.eigenvectors().transpose();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) inverse_v.emplace_back(j + r, j + c, inverse(r, c));
+    }
+  }
+  SparseMatrix v_inverse(num_point_columns, num_point_columns);
+  v_inverse.setFromTriplets(inverse_v.begin(), inverse_v.end());
+  const SparseMatrix w = camera_jacobian.transpose() * point_jacobian;
+  const SparseMatrix w_v_inverse = w * v_inverse;
+  Eigen::MatrixXd schur = Eigen::MatrixXd(camera_jacobian.transpose() * camera_jacobian);
+  schur -= Eigen::MatrixXd(w_v_inverse * w.transpose());
+
+  Eigen::VectorXd scale = schur.diagonal();
+  for (Eigen::Index i = 0; i < scale.size(); ++i) {
+    if (!(scale(i) > 0.0)) return false;  // A column without information.
+    scale(i) = 1.0 / std::sqrt(scale(i));
+  }
+  const Eigen::MatrixXd scaled = scale.asDiagonal() * schur * scale.asDiagonal();
+  const Eigen::LLT<Eigen::MatrixXd> cholesky(scaled);
+  if (cholesky.info() != Eigen::Success || !(cholesky.rcond() >= 1e-14)) return false;
+  std::size_t k = 0;
+  for (const auto& [camera_id, block] : wanted) {
+    const int offset = offsets[k++];
+    const int size = problem->ParameterBlockTangentSize(block);
+    Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(num_camera_columns, size);
+    for (int i = 0; i < size; ++i) unit(offset + i, i) = 1.0;
+    const Eigen::MatrixXd tangent = scale.segment(offset, size).asDiagonal() *
+                                    Eigen::MatrixXd(cholesky.solve(unit)).middleRows(offset, size) *
+                                    scale.segment(offset, size).asDiagonal();
+    // Tangent to ambient: the manifold's plus Jacobian (a selection for a subset manifold).
+    Eigen::MatrixXd plus = Eigen::MatrixXd::Identity(kNumIntrinsics, size);
+    if (const ceres::Manifold* manifold = problem->GetManifold(block)) {
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> j(kNumIntrinsics,
+                                                                               size);
+      if (!manifold->PlusJacobian(block, j.data())) return false;
+      plus = j;
+    }
+    (*out)[camera_id] = plus * tangent * plus.transpose();
+  }
+  return true;
+}
+
 // Fills summary->intrinsics_stddev and variance_factor from the solved `problem` (see
 // BundleAdjustmentOptions::estimate_intrinsics_stddev). The covariance is that of the
 // whitened residuals, (J^T J)^-1, times the a posteriori variance factor.
-void EstimateIntrinsicsStddev(int num_threads,
+void EstimateIntrinsicsStddev(const BundleAdjustmentOptions& options,
+                              int num_threads,
                               const std::map<int, IntrinsicsBlock>& intrinsics,
+                              const std::vector<double*>& points,
                               ceres::Problem* problem,
                               BundleAdjustmentSummary* summary) {
-  std::vector<std::pair<const double*, const double*>> wanted;
+  std::map<int, double*> wanted;
   for (const auto& [camera_id, block] : intrinsics) {
     if (!problem->IsParameterBlockConstant(block.data())) {
-      wanted.emplace_back(block.data(), block.data());
+      wanted[camera_id] = const_cast<double*>(block.data());
     }
   }
   if (wanted.empty()) return;
@@ -222,25 +364,22 @@ void EstimateIntrinsicsStddev(int num_threads,
   if (redundancy <= 0) return;
   const double variance_factor = 2.0 * summary->final_cost / redundancy;
 
-  ceres::Covariance::Options covariance_options;
-  covariance_options.algorithm_type = ceres::SPARSE_QR;  // Detects rank deficiency.
-  covariance_options.num_threads = num_threads;
-  ceres::Covariance covariance(covariance_options);
   Timer timer;
-  if (!covariance.Compute(wanted, problem)) {
+  std::map<int, IntrinsicsCovariance> covariance;
+  const bool by_qr = summary->num_observations <= options.max_observations_for_stddev;
+  const bool estimated =
+      by_qr ? CovarianceBySparseQr(num_threads, wanted, problem, &covariance)
+            : CovarianceBySchur(num_threads, wanted, points, options.max_poses_for_stddev, problem,
+                                &covariance);
+  if (!estimated) {
     LOG_DEBUG << "BA: intrinsics covariance not estimable (is the gauge fixed?)";
     return;
   }
-  LOG_DEBUG << "BA: intrinsics covariance in " << timer.ElapsedSeconds() << " s";
+  LOG_DEBUG << "BA: intrinsics covariance in " << timer.ElapsedSeconds() << " s"
+            << (by_qr ? " (sparse QR)" : " (Schur complement)");
   summary->variance_factor = variance_factor;
-  for (const auto& [camera_id, block] : intrinsics) {
-    if (problem->IsParameterBlockConstant(block.data())) continue;
-    // Ambient space: the subset manifold's held entries come out as zero rows and columns.
-    double c[kNumIntrinsics * kNumIntrinsics];
-    if (!covariance.GetCovarianceBlock(block.data(), block.data(), c)) continue;
-    const auto stddev = [&](int i) {
-      return std::sqrt(std::max(0.0, variance_factor * c[i * kNumIntrinsics + i]));
-    };
+  for (const auto& [camera_id, c] : covariance) {
+    const auto stddev = [&](int i) { return std::sqrt(std::max(0.0, variance_factor * c(i, i))); };
     summary->intrinsics_stddev[camera_id] = {stddev(kIntrinsicsFocal), stddev(kIntrinsicsCx),
                                              stddev(kIntrinsicsCy), stddev(kIntrinsicsK1),
                                              stddev(kIntrinsicsK2)};
@@ -588,13 +727,11 @@ BundleAdjustmentSummary BundleAdjust(const BundleAdjustmentOptions& options,
   summary.success = true;
   summary.message = ceres_summary.message;
   if (options.estimate_intrinsics_stddev && !cancel.IsCanceled()) {
-    if (summary.num_observations <= options.max_observations_for_stddev) {
-      EstimateIntrinsicsStddev(solver_options.num_threads, parameters.intrinsics, &problem,
-                               &summary);
-    } else {
-      LOG_INFO << "BA: " << summary.num_observations << " observations, more than "
-               << options.max_observations_for_stddev << ": intrinsics precision not estimated";
-    }
+    std::vector<double*> points;
+    points.reserve(parameters.points.size());
+    for (auto& [point_id, xyz] : parameters.points) points.push_back(xyz.data());
+    EstimateIntrinsicsStddev(options, solver_options.num_threads, parameters.intrinsics, points,
+                             &problem, &summary);
   }
   summary.time_seconds = timer.ElapsedSeconds();
   LOG_DEBUG << summary.BriefReport();

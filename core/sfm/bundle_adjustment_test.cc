@@ -239,6 +239,7 @@ TEST(BundleAdjustmentOptions, CheckRejectsBadOptionsWithMessage) {
        },
        "estimate_intrinsics_stddev"},
       {[](auto& o) { o.max_observations_for_stddev = -1; }, "max_observations_for_stddev"},
+      {[](auto& o) { o.max_poses_for_stddev = -1; }, "max_poses_for_stddev"},
       {[](auto& o) { o.max_images_dense_schur = 0; }, "max_images_dense_schur"},
       {[](auto& o) { o.max_images_sparse_schur = 10; }, "max_images_sparse_schur"},
       {[](auto& o) { o.scale_fixing_translation_index = 3; }, "scale_fixing_translation_index"},
@@ -541,10 +542,38 @@ TEST(BundleAdjust, IntrinsicsStddevMatchesMonteCarloScatter) {
   EXPECT_GT(summary.intrinsics_stddev.at(0).focal, 0.0);
   EXPECT_EQ(summary.intrinsics_stddev.at(0).cx, 0.0);
   EXPECT_EQ(summary.intrinsics_stddev.at(0).cy, 0.0);
-  // Too large a problem: no estimate.
-  options.max_observations_for_stddev = summary.num_observations - 1;
-  EXPECT_TRUE(BundleAdjust(options, CancelToken(), &rec).intrinsics_stddev.empty());
-  options.max_observations_for_stddev = BundleAdjustmentOptions().max_observations_for_stddev;
+  // Too many observations for the sparse QR: the Schur complement gives the same estimate
+  // (held entries still zero); too many poses for it: no estimate.
+  {
+    Reconstruction again = truth;
+    for (auto& [id, image] : again.images) {
+      for (Eigen::Vector2d& keypoint : image.keypoints) {
+        keypoint += Eigen::Vector2d(normal(rng), normal(rng));
+      }
+    }
+    for (const bool principal_point : {false, true}) {
+      BundleAdjustmentOptions schur = options;
+      schur.refine_principal_point = principal_point;
+      Reconstruction by_qr = again, by_schur = again;
+      const BundleAdjustmentSummary qr = BundleAdjust(schur, CancelToken(), &by_qr);
+      schur.max_observations_for_stddev = qr.num_observations - 1;
+      const BundleAdjustmentSummary complement = BundleAdjust(schur, CancelToken(), &by_schur);
+      ASSERT_EQ(qr.intrinsics_stddev.size(), 1u);
+      ASSERT_EQ(complement.intrinsics_stddev.size(), 1u);
+      const IntrinsicsStddev& a = qr.intrinsics_stddev.at(0);
+      const IntrinsicsStddev& b = complement.intrinsics_stddev.at(0);
+      EXPECT_GT(b.focal, 0.0);
+      EXPECT_NEAR(b.focal, a.focal, 1e-6 * a.focal);
+      EXPECT_NEAR(b.cx, a.cx, 1e-6 * a.focal);
+      EXPECT_NEAR(b.cy, a.cy, 1e-6 * a.focal);
+      EXPECT_NEAR(b.k1, a.k1, 1e-6 * a.k1);
+      EXPECT_NEAR(b.k2, a.k2, 1e-6 * a.k2);
+      EXPECT_EQ(b.cx > 0.0, principal_point);
+      EXPECT_NEAR(complement.variance_factor, qr.variance_factor, 1e-6 * qr.variance_factor);
+      schur.max_poses_for_stddev = static_cast<int>(truth.images.size()) - 3;
+      EXPECT_TRUE(BundleAdjust(schur, CancelToken(), &by_schur).intrinsics_stddev.empty());
+    }
+  }
   // A robust loss would reweigh the covariance: refused.
   options.loss = BundleAdjustmentLoss::kCauchy;
   EXPECT_THROW(BundleAdjust(options, CancelToken(), &rec), CheckError);
@@ -554,6 +583,11 @@ TEST(BundleAdjust, IntrinsicsStddevMatchesMonteCarloScatter) {
   summary = BundleAdjust(options, CancelToken(), &rec);
   ASSERT_TRUE(summary.success);
   EXPECT_TRUE(summary.intrinsics_stddev.empty());
+  options.max_observations_for_stddev = 0;  // The Schur complement sees the free gauge too.
+  summary = BundleAdjust(options, CancelToken(), &rec);
+  ASSERT_TRUE(summary.success);
+  EXPECT_TRUE(summary.intrinsics_stddev.empty());
+  options.max_observations_for_stddev = BundleAdjustmentOptions().max_observations_for_stddev;
   // Not asked for: not computed.
   summary = BundleAdjust(GaugeFixedOptions(truth), CancelToken(), &rec);
   EXPECT_TRUE(summary.intrinsics_stddev.empty());
