@@ -317,13 +317,46 @@ class Mapper {
   // ---------------------------------------------------------------------------------------
   // Initial pair.
 
+  // What an initial pair must show (IncrementalMapperOptions: the usual bar, or the weak one
+  // used when nothing better exists).
+  struct InitialPairBar {
+    int min_inliers = 0;             // Verified matches of the pair.
+    int min_in_front = 0;            // Essential-matrix inliers in front of both cameras.
+    int min_points = 0;              // Triangulated, and after the pair's adjustment.
+    double min_angle_deg = 0;        // Median triangulation angle.
+    double min_essential_share = 0;  // In-front essential inliers / matches used.
+    bool weak = false;
+  };
+
+  // A weak initial pair whose essential-matrix inliers a homography fits beyond this share at
+  // the same threshold is refused (COLMAP's initial pair uses a similar H/E inlier ratio).
+  static constexpr double kMaxWeakHomographyShare = 0.8;
+
   bool Initialize(Reconstruction* model) {
+    InitialPairBar bar;
+    bar.min_inliers = options_.min_initial_inliers;
+    bar.min_in_front = options_.min_initial_inliers / 2;
+    bar.min_points = std::max(30, options_.min_initial_inliers / 2);
+    bar.min_angle_deg = options_.min_initial_angle_deg;
+    if (InitializeWith(bar, model)) return true;
+    // Nothing better exists: no pair met the usual bar and no photo is reconstructed yet.
+    if (options_.weak_initial_inliers <= 0 || !used_.empty()) return false;
+    InitialPairBar weak;
+    weak.min_inliers = options_.weak_initial_inliers;
+    weak.min_essential_share = options_.weak_initial_essential_share;
+    weak.min_in_front = static_cast<int>(std::ceil(weak.min_inliers * weak.min_essential_share));
+    weak.min_points = weak.min_in_front;
+    weak.min_angle_deg = options_.weak_initial_angle_deg;
+    weak.weak = true;
+    return InitializeWith(weak, model);
+  }
+
+  bool InitializeWith(const InitialPairBar& bar, Reconstruction* model) {
     std::vector<const MapperPair*> candidates;
     for (const MapperPair& pair : input_.pairs) {
-      if (!pair.epipolar || static_cast<int>(pair.matches.size()) < options_.min_initial_inliers)
-        continue;
+      if (!pair.epipolar || static_cast<int>(pair.matches.size()) < bar.min_inliers) continue;
       if (used_.count(pair.image1) || used_.count(pair.image2)) continue;
-      if (tried_initial_.count({pair.image1, pair.image2})) continue;
+      if (tried_initial_.count({pair.image1, pair.image2, bar.weak})) continue;
       candidates.push_back(&pair);
     }
     auto score = [](const MapperPair* p) {
@@ -338,20 +371,27 @@ class Mapper {
     for (int k = 0; k < trials; ++k) {
       cancel_.ThrowIfCanceled();
       const MapperPair& pair = *candidates[k];
-      tried_initial_.insert({pair.image1, pair.image2});
+      tried_initial_.insert({pair.image1, pair.image2, bar.weak});
       std::string why;
-      if (TryInitialPair(pair, model, &why)) {
-        Note("initial pair " + input_.images.at(pair.image1).name + " + " +
-             input_.images.at(pair.image2).name + ": " + why);
+      if (TryInitialPair(pair, bar, model, &why)) {
+        Note(std::string(bar.weak ? "weak initial pair " : "initial pair ") +
+             input_.images.at(pair.image1).name + " + " + input_.images.at(pair.image2).name +
+             ": " + why +
+             (bar.weak ? " (no pair has " + std::to_string(options_.min_initial_inliers) +
+                             " matches and a good geometry)"
+                       : ""));
         return true;
       }
-      LOG_DEBUG << "sfm: initial pair " << pair.image1 << "-" << pair.image2
-                << " rejected: " << why;
+      LOG_DEBUG << "sfm: " << (bar.weak ? "weak " : "") << "initial pair " << pair.image1 << "-"
+                << pair.image2 << " rejected: " << why;
     }
     return false;
   }
 
-  bool TryInitialPair(const MapperPair& pair, Reconstruction* model, std::string* why) {
+  bool TryInitialPair(const MapperPair& pair,
+                      const InitialPairBar& bar,
+                      Reconstruction* model,
+                      std::string* why) {
     const MapperImage& image1 = input_.images.at(pair.image1);
     const MapperImage& image2 = input_.images.at(pair.image2);
     const Camera& camera1 = cameras_.at(image1.camera_id);
@@ -384,9 +424,32 @@ class Mapper {
     cv::Mat r_cv, t_cv;
     const int in_front =
         cv::recoverPose(e, p1, p2, r_cv, t_cv, 1.0, cv::Point2d(0, 0), inlier_mask);
-    if (in_front < options_.min_initial_inliers / 2) {
-      *why = "only " + std::to_string(in_front) + " points in front of both cameras";
+    if (in_front < bar.min_in_front || in_front < bar.min_essential_share * p1.size()) {
+      *why = "only " + std::to_string(in_front) + " of " + std::to_string(p1.size()) +
+             " matches agree with an essential matrix in front of both cameras";
       return false;
+    }
+    if (bar.weak) {
+      // Few matches leave the essential matrix poorly constrained when a homography (a pure
+      // rotation or a plane) explains them as well; the usual bar leaves that to GRIC's
+      // F-versus-H choice over many matches, the weak one refuses it outright.
+      std::vector<cv::Point2d> q1, q2;
+      for (std::size_t i = 0; i < p1.size(); ++i) {
+        if (!inlier_mask.at<std::uint8_t>(static_cast<int>(i))) continue;
+        const double f = 1.5 / threshold;  // Back to pixels (of the mean focal).
+        q1.push_back(p1[i] * f);
+        q2.push_back(p2[i] * f);
+      }
+      cv::Mat h_mask;
+      // The transfer error puts both photos' noise into one: twice the essential matrix's
+      // 1.5 px (at 0.5 px noise a pure rotation's matches fit at 1.5 px 25 of 40, at 3 px 38).
+      const cv::Mat h = cv::findHomography(q1, q2, cv::RANSAC, 3.0, h_mask, 2000, 0.999);
+      const int h_inliers = h.empty() ? 0 : cv::countNonZero(h_mask);
+      if (h_inliers > kMaxWeakHomographyShare * q1.size()) {
+        *why = "a homography explains " + std::to_string(h_inliers) + " of its " +
+               std::to_string(q1.size()) + " essential-matrix inliers";
+        return false;
+      }
     }
     Eigen::Matrix3d r;
     Eigen::Vector3d t;
@@ -417,8 +480,7 @@ class Mapper {
     std::ostringstream s;
     s << angles.size() << " points, median triangulation angle " << median_angle << " deg";
     *why = s.str();
-    if (static_cast<int>(angles.size()) < std::max(30, options_.min_initial_inliers / 2) ||
-        median_angle < options_.min_initial_angle_deg) {
+    if (static_cast<int>(angles.size()) < bar.min_points || median_angle < bar.min_angle_deg) {
       ForgetTrackPoints(candidate);
       return false;
     }
@@ -431,7 +493,7 @@ class Mapper {
     ba.loss = BundleAdjustmentLoss::kCauchy;
     BundleAdjust(ba, cancel_, &candidate);
     FilterPoints(&candidate, {pair.image1, pair.image2});
-    if (static_cast<int>(candidate.points.size()) < 30) {
+    if (static_cast<int>(candidate.points.size()) < bar.min_points) {
       *why += "; too few points survive bundle adjustment";
       ForgetTrackPoints(candidate);
       return false;
@@ -1002,11 +1064,11 @@ class Mapper {
   const CancelToken& cancel_;
   MapperSummary* summary_;
 
-  std::map<int, std::vector<int>> track_of_;  // image id -> track per keypoint (-1: none)
-  std::map<int, int> track_point_;            // track -> point id in the current model
-  std::map<int, int> point_track_;            // point id -> track
-  std::set<int> used_;                        // Photos registered in an earlier model.
-  std::set<std::pair<int, int>> tried_initial_;
+  std::map<int, std::vector<int>> track_of_;            // image id -> track per keypoint (-1: none)
+  std::map<int, int> track_point_;                      // track -> point id in the current model
+  std::map<int, int> point_track_;                      // point id -> track
+  std::set<int> used_;                                  // Photos registered in an earlier model.
+  std::set<std::tuple<int, int, bool>> tried_initial_;  // (image1, image2, weak bar)
   std::map<int, Camera> cameras_;  // Initial intrinsics (input_.cameras unless replaced).
   // The intrinsics' standard deviations from the current model's final adjustment.
   std::map<int, IntrinsicsStddev> final_stddev_;
@@ -1167,6 +1229,15 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
     m << "min_initial_inliers must be at least 8, got " << min_initial_inliers;
   } else if (!(min_initial_angle_deg >= 0 && min_initial_angle_deg < 90)) {
     m << "min_initial_angle_deg must be in [0, 90), got " << min_initial_angle_deg;
+  } else if (weak_initial_inliers != 0 &&
+             (weak_initial_inliers < 8 || weak_initial_inliers > min_initial_inliers)) {
+    m << "weak_initial_inliers must be 0 (off) or in [8, min_initial_inliers = "
+      << min_initial_inliers << "], got " << weak_initial_inliers;
+  } else if (!(weak_initial_essential_share >= 0 && weak_initial_essential_share <= 1)) {
+    m << "weak_initial_essential_share must be in [0, 1], got " << weak_initial_essential_share;
+  } else if (!(weak_initial_angle_deg >= min_initial_angle_deg && weak_initial_angle_deg < 90)) {
+    m << "weak_initial_angle_deg must be in [min_initial_angle_deg, 90), got "
+      << weak_initial_angle_deg;
   } else if (max_initial_pair_trials < 1) {
     m << "max_initial_pair_trials must be at least 1, got " << max_initial_pair_trials;
   } else if (!(max_reprojection_error_px > 0)) {

@@ -94,6 +94,16 @@ struct IncrementalMapperOptions {
   double min_initial_angle_deg = 2.0;
   // Initial pair: candidates tried per model. [1, ...]
   int max_initial_pair_trials = 40;
+  // When no pair meets the bar above and nothing has been reconstructed yet (few-feature
+  // photos: a small object on a plain background may give every pair only 20-50 matches), a
+  // weak initial pair is accepted: at least `weak_initial_inliers` verified matches, of which
+  // `weak_initial_essential_share` agree with one essential matrix at 1.5 px and triangulate
+  // in front of both cameras, with a median triangulation angle of at least
+  // `weak_initial_angle_deg` and as many points surviving the pair's adjustment. Off with
+  // weak_initial_inliers = 0. Logged "weak initial pair ...".
+  int weak_initial_inliers = 20;              // 0 or [8, min_initial_inliers]
+  double weak_initial_essential_share = 0.8;  // [0, 1]
+  double weak_initial_angle_deg = 4.0;        // [min_initial_angle_deg, 90)
   // Observations reprojecting worse than this (pixels) are outliers. (0, ...)
   double max_reprojection_error_px = 4.0;
   // Points seen under a smaller angle (degrees) are not kept. [0, 90)

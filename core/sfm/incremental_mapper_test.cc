@@ -88,6 +88,10 @@ TEST(IncrementalMapperOptions, DefaultsAreValid) {
   bad.global_ba_growth = 1.0;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("global_ba_growth"), std::string::npos);
+  IncrementalMapperOptions weak_above_bar;
+  weak_above_bar.weak_initial_inliers = weak_above_bar.min_initial_inliers + 1;
+  EXPECT_FALSE(weak_above_bar.Check(&error));
+  EXPECT_NE(error.find("weak_initial_inliers"), std::string::npos);
 }
 
 // 10 photos on a ring, 1500 points, f = 800 px, k1 = -0.05, 0.5 px noise, 5 % outliers.
@@ -626,6 +630,53 @@ TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
   const Errors errors = Compare(with.models.front(), with.scene);
   EXPECT_LT(errors.max_rotation_deg, 0.5);
   EXPECT_LT(errors.max_center, 0.01 * SyntheticSceneOptions().camera_distance);
+}
+
+// Few-feature photos: a ring of 8 photos of 40 points, so every pair has at most 40 matches,
+// fewer than an initial pair needs (50). With nothing better, a weak initial pair (most
+// matches on one essential matrix, a wide angle) starts the model, and the rest register by
+// PnP from the same few points.
+struct FewMatchesRun {
+  SyntheticScene scene;
+  std::vector<Reconstruction> models;
+  MapperSummary summary;
+};
+
+FewMatchesRun ReconstructFewMatches(int weak_initial_inliers, SyntheticCameraLayout layout) {
+  SyntheticSceneOptions scene_options;
+  scene_options.layout = layout;
+  scene_options.num_cameras = 8;
+  scene_options.num_points = 40;
+  scene_options.pixel_noise_stddev = 0.5;
+  scene_options.seed = 11;
+  FewMatchesRun run;
+  run.scene = SynthesizeScene(scene_options);
+  const MapperInput input = InputFromScene(run.scene, scene_options.focal);
+  IncrementalMapperOptions options;
+  options.weak_initial_inliers = weak_initial_inliers;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, WeakInitialPairWhenNothingBetterExists) {
+  const FewMatchesRun without = ReconstructFewMatches(0, SyntheticCameraLayout::kRing);
+  EXPECT_TRUE(without.models.empty()) << "no pair has the 50 matches of the usual bar";
+
+  const FewMatchesRun with = ReconstructFewMatches(20, SyntheticCameraLayout::kRing);
+  ASSERT_EQ(with.models.size(), 1u);
+  EXPECT_EQ(with.models.front().images.size(), 8u);
+  int weak = 0;
+  for (const std::string& line : with.summary.log) weak += line.rfind("weak initial pair", 0) == 0;
+  EXPECT_EQ(weak, 1);
+  const Errors errors = Compare(with.models.front(), with.scene);
+  EXPECT_LT(errors.max_rotation_deg, 1.0);
+  EXPECT_LT(errors.max_center, 0.02 * SyntheticSceneOptions().camera_distance);
+}
+
+TEST(ReconstructIncrementally, WeakInitialPairStillNeedsParallax) {
+  const FewMatchesRun run = ReconstructFewMatches(20, SyntheticCameraLayout::kPureRotation);
+  EXPECT_TRUE(run.models.empty()) << "no parallax: not even a weak initial pair";
 }
 
 TEST(ReconstructIncrementally, PureRotationCannotInitialise) {
