@@ -482,7 +482,8 @@ double RelativeRotationErrorDeg(const Reconstruction& model, const SyntheticScen
 //               registered, enough of the two merged.
 enum class LoopCut { kWeakLinks, kOpen, kBridge };
 
-struct LoopRun {
+// A synthetic scene and what the mapper made of it.
+struct SceneRun {
   SyntheticScene scene;
   std::vector<Reconstruction> models;
   MapperSummary summary;
@@ -504,7 +505,7 @@ bool KeepLoopMatch(LoopCut cut, int i, int j, int point) {
   return neighbours && point % 20 == 0;
 }
 
-LoopRun ReconstructLoop(LoopCut cut, bool reregister = true) {
+SceneRun ReconstructLoop(LoopCut cut, bool reregister = true) {
   SyntheticSceneOptions scene_options;
   scene_options.num_cameras = 24;
   scene_options.num_points = 2400;
@@ -512,7 +513,7 @@ LoopRun ReconstructLoop(LoopCut cut, bool reregister = true) {
   scene_options.pixel_noise_stddev = 0.5;
   scene_options.outlier_fraction = 0.02;
   scene_options.seed = 31;
-  LoopRun run;
+  SceneRun run;
   run.scene = SynthesizeScene(scene_options);
   MapperInput input = InputFromScene(run.scene, scene_options.focal);
   FilterMatches(run.scene, &input,
@@ -528,7 +529,7 @@ LoopRun ReconstructLoop(LoopCut cut, bool reregister = true) {
 }
 
 TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
-  const LoopRun loop = ReconstructLoop(LoopCut::kWeakLinks);
+  const SceneRun loop = ReconstructLoop(LoopCut::kWeakLinks);
   ASSERT_EQ(loop.models.size(), 1u);
   EXPECT_EQ(loop.models[0].images.size(), 24u);
   EXPECT_EQ(loop.summary.num_merges, 1);
@@ -538,7 +539,7 @@ TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
               std::string::npos;
   }
   EXPECT_EQ(merged, 1);
-  const LoopRun open = ReconstructLoop(LoopCut::kOpen);
+  const SceneRun open = ReconstructLoop(LoopCut::kOpen);
   ASSERT_EQ(open.models.size(), 1u);
   ASSERT_EQ(open.models[0].images.size(), 24u);
   EXPECT_EQ(open.summary.num_merges, 0);
@@ -553,13 +554,13 @@ TEST(ReconstructIncrementally, LoopCutInTwoIsMergedAlongItsTracks) {
 
 // Photo 6 sees too few points of either model; after the merge, re-registration places it.
 TEST(ReconstructIncrementally, APhotoLeftOutJoinsTheMergedModel) {
-  const LoopRun without = ReconstructLoop(LoopCut::kBridge, /*reregister=*/false);
+  const SceneRun without = ReconstructLoop(LoopCut::kBridge, /*reregister=*/false);
   ASSERT_FALSE(without.models.empty());
   EXPECT_EQ(without.summary.num_merges, 1);
   EXPECT_EQ(without.models[0].images.size(), 23u);
   EXPECT_FALSE(without.models[0].images.count(6));
 
-  const LoopRun with = ReconstructLoop(LoopCut::kBridge);
+  const SceneRun with = ReconstructLoop(LoopCut::kBridge);
   ASSERT_EQ(with.models.size(), 1u);
   EXPECT_EQ(with.models[0].images.size(), 24u);
   EXPECT_EQ(with.summary.num_reregistered, 1);
@@ -580,13 +581,7 @@ TEST(ReconstructIncrementally, APhotoLeftOutJoinsTheMergedModel) {
 // but a photo sees only a handful of the points its registered neighbour triangulated: fewer
 // than PnP needs (20). Registration by relative pose places each photo from its neighbour's
 // two-view geometry with the scale from those few points.
-struct WideRingRun {
-  SyntheticScene scene;
-  std::vector<Reconstruction> models;
-  MapperSummary summary;
-};
-
-WideRingRun ReconstructWideRing(bool relative_registration) {
+SceneRun ReconstructWideRing(bool relative_registration) {
   SyntheticSceneOptions scene_options;
   scene_options.num_cameras = 8;
   scene_options.num_points = 400;
@@ -598,7 +593,7 @@ WideRingRun ReconstructWideRing(bool relative_registration) {
   scene_options.scene_radius = 1.5;
   scene_options.pixel_noise_stddev = 0.3;
   scene_options.seed = 5;
-  WideRingRun run;
+  SceneRun run;
   run.scene = SynthesizeScene(scene_options);
   MapperInput input = InputFromScene(run.scene, scene_options.focal);
   FilterMatches(run.scene, &input, [](int i, int j, int point) {
@@ -614,11 +609,11 @@ WideRingRun ReconstructWideRing(bool relative_registration) {
 }
 
 TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
-  const WideRingRun without = ReconstructWideRing(false);
+  const SceneRun without = ReconstructWideRing(false);
   ASSERT_FALSE(without.models.empty());
   EXPECT_LE(without.models.front().images.size(), 3u) << "PnP alone stops at the first gap";
 
-  const WideRingRun with = ReconstructWideRing(true);
+  const SceneRun with = ReconstructWideRing(true);
   ASSERT_EQ(with.models.size(), 1u);
   EXPECT_EQ(with.models.front().images.size(), 8u);
   int relative = 0;
@@ -636,20 +631,14 @@ TEST(ReconstructIncrementally, WideGapsNeedRelativePoses) {
 // fewer than an initial pair needs (50). With nothing better, a weak initial pair (most
 // matches on one essential matrix, a wide angle) starts the model, and the rest register by
 // PnP from the same few points.
-struct FewMatchesRun {
-  SyntheticScene scene;
-  std::vector<Reconstruction> models;
-  MapperSummary summary;
-};
-
-FewMatchesRun ReconstructFewMatches(int weak_initial_inliers, SyntheticCameraLayout layout) {
+SceneRun ReconstructFewMatches(int weak_initial_inliers, SyntheticCameraLayout layout) {
   SyntheticSceneOptions scene_options;
   scene_options.layout = layout;
   scene_options.num_cameras = 8;
   scene_options.num_points = 40;
   scene_options.pixel_noise_stddev = 0.5;
   scene_options.seed = 11;
-  FewMatchesRun run;
+  SceneRun run;
   run.scene = SynthesizeScene(scene_options);
   const MapperInput input = InputFromScene(run.scene, scene_options.focal);
   IncrementalMapperOptions options;
@@ -660,10 +649,10 @@ FewMatchesRun ReconstructFewMatches(int weak_initial_inliers, SyntheticCameraLay
 }
 
 TEST(ReconstructIncrementally, WeakInitialPairWhenNothingBetterExists) {
-  const FewMatchesRun without = ReconstructFewMatches(0, SyntheticCameraLayout::kRing);
+  const SceneRun without = ReconstructFewMatches(0, SyntheticCameraLayout::kRing);
   EXPECT_TRUE(without.models.empty()) << "no pair has the 50 matches of the usual bar";
 
-  const FewMatchesRun with = ReconstructFewMatches(20, SyntheticCameraLayout::kRing);
+  const SceneRun with = ReconstructFewMatches(20, SyntheticCameraLayout::kRing);
   ASSERT_EQ(with.models.size(), 1u);
   EXPECT_EQ(with.models.front().images.size(), 8u);
   int weak = 0;
@@ -675,7 +664,7 @@ TEST(ReconstructIncrementally, WeakInitialPairWhenNothingBetterExists) {
 }
 
 TEST(ReconstructIncrementally, WeakInitialPairStillNeedsParallax) {
-  const FewMatchesRun run = ReconstructFewMatches(20, SyntheticCameraLayout::kPureRotation);
+  const SceneRun run = ReconstructFewMatches(20, SyntheticCameraLayout::kPureRotation);
   EXPECT_TRUE(run.models.empty()) << "no parallax: not even a weak initial pair";
 }
 
