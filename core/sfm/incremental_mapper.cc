@@ -328,8 +328,8 @@ class Mapper {
     bool weak = false;
   };
 
-  // A weak initial pair whose essential-matrix inliers a homography fits beyond this share at
-  // the same threshold is refused (COLMAP's initial pair uses a similar H/E inlier ratio).
+  // A weak initial pair whose essential-matrix inliers a homography fits beyond this share
+  // (at 3 px, see TryInitialPair) is refused (COLMAP's initial pair uses a similar H/E ratio).
   static constexpr double kMaxWeakHomographyShare = 0.8;
 
   bool Initialize(Reconstruction* model) {
@@ -434,9 +434,9 @@ class Mapper {
       // rotation or a plane) explains them as well; the usual bar leaves that to GRIC's
       // F-versus-H choice over many matches, the weak one refuses it outright.
       std::vector<cv::Point2d> q1, q2;
+      const double f = 1.5 / threshold;  // Back to pixels (of the mean focal).
       for (std::size_t i = 0; i < p1.size(); ++i) {
         if (!inlier_mask.at<std::uint8_t>(static_cast<int>(i))) continue;
-        const double f = 1.5 / threshold;  // Back to pixels (of the mean focal).
         q1.push_back(p1[i] * f);
         q2.push_back(p2[i] * f);
       }

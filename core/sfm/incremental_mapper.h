@@ -99,7 +99,8 @@ struct IncrementalMapperOptions {
   // weak initial pair is accepted: at least `weak_initial_inliers` verified matches, of which
   // `weak_initial_essential_share` agree with one essential matrix at 1.5 px and triangulate
   // in front of both cameras, with a median triangulation angle of at least
-  // `weak_initial_angle_deg` and as many points surviving the pair's adjustment. Off with
+  // `weak_initial_angle_deg`, as many points surviving the pair's adjustment, and no
+  // homography fitting over 80 % of the essential inliers at 3 px (pure rotation, plane). Off with
   // weak_initial_inliers = 0. Logged "weak initial pair ...".
   int weak_initial_inliers = 20;              // 0 or [8, min_initial_inliers]
   double weak_initial_essential_share = 0.8;  // [0, 1]
