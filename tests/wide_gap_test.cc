@@ -104,7 +104,8 @@ TEST_F(WideGap, FirstEightTemplePhotosBridgeTheir55DegreeGap) {
       evaluation_.num_registered, evaluation_.mean_relative_rotation_error_deg,
       evaluation_.mean_focal_error_percent);
   EXPECT_GE(evaluation_.num_registered, 5);
-  // Measured: 2.4-2.7 deg and 2.5-3.6 % (the issue asks for 2 deg and 2 %; see its note).
+  // Measured: 2.4-2.7 deg and 2.5-3.9 % (2.53 deg, 3.90 % with the final outlier filter; the
+  // issue asks for 2 deg and 2 %; see its note).
   EXPECT_LT(evaluation_.mean_relative_rotation_error_deg, 4.0);
   EXPECT_LT(evaluation_.mean_focal_error_percent, 6.0);
 }
@@ -123,9 +124,9 @@ TEST_F(WideGap, EverySecondTemplePhotoRefusesTheFalsePairsAcrossTheRing) {
       evaluation_.num_registered, evaluation_.mean_center_error_percent_of_radius,
       evaluation_.mean_relative_rotation_error_deg, evaluation_.mean_focal_error_percent);
   EXPECT_EQ(evaluation_.num_registered, 8);
-  // Measured: 2.72 deg and 1.12 % (with the false pairs, 3.05 deg and 2.65 %); the issue asks
-  // for 2 deg and 2 %.
-  EXPECT_LT(evaluation_.mean_relative_rotation_error_deg, 3.5);
+  // The issue asks for 2 deg and 2 %. Measured: 1.71 deg and 0.72 % (2.72 deg and 1.12 %
+  // without the mapper's final outlier filter; 3.05 deg and 2.65 % with the false pairs).
+  EXPECT_LT(evaluation_.mean_relative_rotation_error_deg, 2.0);
   EXPECT_LT(evaluation_.mean_focal_error_percent, 2.0);
 }
 

@@ -895,11 +895,58 @@ class Mapper {
     Note(line.str());
   }
 
+  // IncrementalMapperOptions::final_outlier_multiple: the threshold from the model's median
+  // reprojection error (a 2-D Gaussian's error norm exceeds 6 medians once in 10^11 times, so
+  // only the heavy tail goes: matches a pixel or two off that the 4 px bar of the growing
+  // model lets bend the poses). False when the filter is off or the bar would not tighten.
+  bool SetFinalOutlierThreshold(const Reconstruction& model) {
+    final_threshold_px_ = options_.max_reprojection_error_px;
+    if (options_.final_outlier_multiple <= 0) return false;
+    std::vector<double> errors;
+    for (const auto& [id, point] : model.points) {
+      for (const Observation& o : point.observations)
+        errors.push_back(model.ReprojectionError(point, o));
+    }
+    if (errors.empty()) return false;
+    std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+    median_error_px_ = errors[errors.size() / 2];
+    final_threshold_px_ =
+        std::clamp(options_.final_outlier_multiple * median_error_px_,
+                   options_.final_min_outlier_px, options_.max_reprojection_error_px);
+    return final_threshold_px_ < options_.max_reprojection_error_px;
+  }
+
   void Finish(Reconstruction* model) {
     // Tracks that could not be triangulated earlier may be now, with all photos in place.
     for (const auto& [id, image] : model->images) TriangulateImage(model, id);
     GlobalAdjust(model, /*final=*/false);
     GlobalAdjust(model, /*final=*/true);
+    if (SetFinalOutlierThreshold(*model)) {
+      // Twice: the first removal moves the poses, which shows more of the tail. The
+      // adjustments keep the principal-point decision the final adjustment made.
+      const std::size_t observations = model->NumObservations();
+      const std::size_t points = model->points.size();
+      std::set<int> all;
+      for (const auto& [id, image] : model->images) all.insert(id);
+      for (int round = 0; round < 2; ++round) {
+        FilterPoints(model, all, final_threshold_px_);
+        const ScopedSeconds timed(&times_.global_adjustment);
+        ++times_.global_adjustments;
+        BundleAdjustmentOptions ba = GlobalBundleOptions(*model, /*final=*/true);
+        ba.refine_principal_point = principal_point_refined_;
+        const BundleAdjustmentSummary summary = BundleAdjust(ba, cancel_, model);
+        LOG_INFO << "sfm: adjustment of " << model->images.size()
+                 << " photos after the outlier filter: " << summary.BriefReport();
+      }
+      FilterPoints(model, all, final_threshold_px_);
+      std::ostringstream line;
+      line << std::fixed << std::setprecision(2)
+           << "final outlier filter: median reprojection error " << median_error_px_ << " px, bar "
+           << final_threshold_px_ << " px: " << observations - model->NumObservations() << " of "
+           << observations << " observations and " << points - model->points.size()
+           << " points removed";
+      Note(line.str());
+    }
     // Back to the optimum without the points the last filter removed, and the precision of
     // the intrinsics there.
     BundleAdjustmentOptions ba = GlobalBundleOptions(*model, /*final=*/true);
@@ -1002,6 +1049,9 @@ class Mapper {
 
   // Removes bad observations and points among those seen by `images`.
   void FilterPoints(Reconstruction* model, const std::set<int>& images) {
+    FilterPoints(model, images, options_.max_reprojection_error_px);
+  }
+  void FilterPoints(Reconstruction* model, const std::set<int>& images, double max_error_px) {
     std::set<int> candidates;
     for (int id : images) {
       auto it = model->images.find(id);
@@ -1016,9 +1066,8 @@ class Mapper {
       const std::vector<Observation> observations = it->second.observations;
       for (const Observation& o : observations) {
         const RegisteredImage& image = model->images.at(o.image_id);
-        const bool bad =
-            !HasPositiveDepth(image.cam_from_world, it->second.xyz_in_world) ||
-            model->ReprojectionError(it->second, o) > options_.max_reprojection_error_px;
+        const bool bad = !HasPositiveDepth(image.cam_from_world, it->second.xyz_in_world) ||
+                         model->ReprojectionError(it->second, o) > max_error_px;
         if (bad) {
           model->DeleteObservation(point_id, o);
           if (!model->points.count(point_id)) break;
@@ -1078,6 +1127,9 @@ class Mapper {
   int init_image1_ = kInvalidId;
   int init_image2_ = kInvalidId;
   std::size_t last_global_size_ = 0;
+  // The final outlier filter's bar and the median it came from.
+  double final_threshold_px_ = 0.0;
+  double median_error_px_ = 0.0;
 };
 
 // Focal search (IncrementalMapperOptions::focal_search): the initial cameras to start the
@@ -1242,6 +1294,10 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
     m << "max_initial_pair_trials must be at least 1, got " << max_initial_pair_trials;
   } else if (!(max_reprojection_error_px > 0)) {
     m << "max_reprojection_error_px must be positive, got " << max_reprojection_error_px;
+  } else if (!(final_outlier_multiple == 0 || final_outlier_multiple >= 3)) {
+    m << "final_outlier_multiple must be 0 (off) or at least 3, got " << final_outlier_multiple;
+  } else if (!(final_min_outlier_px > 0)) {
+    m << "final_min_outlier_px must be positive, got " << final_min_outlier_px;
   } else if (!(min_triangulation_angle_deg >= 0 && min_triangulation_angle_deg < 90)) {
     m << "min_triangulation_angle_deg must be in [0, 90), got " << min_triangulation_angle_deg;
   } else if (min_registration_points < 4) {
