@@ -15,6 +15,7 @@
 #include <iomanip>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <tuple>
@@ -895,25 +896,29 @@ class Mapper {
     Note(line.str());
   }
 
-  // IncrementalMapperOptions::final_outlier_multiple: the threshold from the model's median
+  // IncrementalMapperOptions::final_outlier_multiple: the bar from the model's median
   // reprojection error (a 2-D Gaussian's error norm exceeds 6 medians once in 10^11 times, so
   // only the heavy tail goes: matches a pixel or two off that the 4 px bar of the growing
-  // model lets bend the poses). False when the filter is off or the bar would not tighten.
-  bool SetFinalOutlierThreshold(const Reconstruction& model) {
-    final_threshold_px_ = options_.max_reprojection_error_px;
-    if (options_.final_outlier_multiple <= 0) return false;
+  // model lets bend the poses). nullopt when the filter is off or the bar would not tighten.
+  struct OutlierBar {
+    double median_px = 0.0;
+    double bar_px = 0.0;
+  };
+  std::optional<OutlierBar> FinalOutlierBar(const Reconstruction& model) const {
+    if (options_.final_outlier_multiple <= 0) return std::nullopt;
     std::vector<double> errors;
     for (const auto& [id, point] : model.points) {
       for (const Observation& o : point.observations)
         errors.push_back(model.ReprojectionError(point, o));
     }
-    if (errors.empty()) return false;
+    if (errors.empty()) return std::nullopt;
     std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
-    median_error_px_ = errors[errors.size() / 2];
-    final_threshold_px_ =
-        std::clamp(options_.final_outlier_multiple * median_error_px_,
-                   options_.final_min_outlier_px, options_.max_reprojection_error_px);
-    return final_threshold_px_ < options_.max_reprojection_error_px;
+    OutlierBar bar;
+    bar.median_px = errors[errors.size() / 2];
+    bar.bar_px = std::clamp(options_.final_outlier_multiple * bar.median_px,
+                            options_.final_min_outlier_px, options_.max_reprojection_error_px);
+    if (bar.bar_px >= options_.max_reprojection_error_px) return std::nullopt;
+    return bar;
   }
 
   void Finish(Reconstruction* model) {
@@ -921,7 +926,7 @@ class Mapper {
     for (const auto& [id, image] : model->images) TriangulateImage(model, id);
     GlobalAdjust(model, /*final=*/false);
     GlobalAdjust(model, /*final=*/true);
-    if (SetFinalOutlierThreshold(*model)) {
+    if (const std::optional<OutlierBar> bar = FinalOutlierBar(*model)) {
       // Twice: the first removal moves the poses, which shows more of the tail. The
       // adjustments keep the principal-point decision the final adjustment made.
       const std::size_t observations = model->NumObservations();
@@ -929,7 +934,7 @@ class Mapper {
       std::set<int> all;
       for (const auto& [id, image] : model->images) all.insert(id);
       for (int round = 0; round < 2; ++round) {
-        FilterPoints(model, all, final_threshold_px_);
+        FilterPoints(model, all, bar->bar_px);
         const ScopedSeconds timed(&times_.global_adjustment);
         ++times_.global_adjustments;
         BundleAdjustmentOptions ba = GlobalBundleOptions(*model, /*final=*/true);
@@ -938,11 +943,11 @@ class Mapper {
         LOG_INFO << "sfm: adjustment of " << model->images.size()
                  << " photos after the outlier filter: " << summary.BriefReport();
       }
-      FilterPoints(model, all, final_threshold_px_);
+      FilterPoints(model, all, bar->bar_px);
       std::ostringstream line;
       line << std::fixed << std::setprecision(2)
-           << "final outlier filter: median reprojection error " << median_error_px_ << " px, bar "
-           << final_threshold_px_ << " px: " << observations - model->NumObservations() << " of "
+           << "final outlier filter: median reprojection error " << bar->median_px << " px, bar "
+           << bar->bar_px << " px: " << observations - model->NumObservations() << " of "
            << observations << " observations and " << points - model->points.size()
            << " points removed";
       Note(line.str());
@@ -1127,9 +1132,6 @@ class Mapper {
   int init_image1_ = kInvalidId;
   int init_image2_ = kInvalidId;
   std::size_t last_global_size_ = 0;
-  // The final outlier filter's bar and the median it came from.
-  double final_threshold_px_ = 0.0;
-  double median_error_px_ = 0.0;
 };
 
 // Focal search (IncrementalMapperOptions::focal_search): the initial cameras to start the

@@ -93,6 +93,10 @@ TEST(IncrementalMapperOptions, DefaultsAreValid) {
   weak_above_bar.weak_initial_inliers = weak_above_bar.min_initial_inliers + 1;
   EXPECT_FALSE(weak_above_bar.Check(&error));
   EXPECT_NE(error.find("weak_initial_inliers"), std::string::npos);
+  IncrementalMapperOptions loose_filter;
+  loose_filter.final_outlier_multiple = 2.0;  // Would cut into Gaussian noise.
+  EXPECT_FALSE(loose_filter.Check(&error));
+  EXPECT_NE(error.find("final_outlier_multiple"), std::string::npos);
 }
 
 // 10 photos on a ring, 1500 points, f = 800 px, k1 = -0.05, 0.5 px noise, 5 % outliers.
