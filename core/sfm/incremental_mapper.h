@@ -115,7 +115,7 @@ struct IncrementalMapperOptions {
   // are what bends the poses: templeSparseRing every second photo has a median of 0.22 px
   // and 11 % of its matches over 1.5 px from the true epipolar lines. With 6 medians (about
   // 7 sigma of Gaussian noise, so clean noise loses nothing): its relative rotations 2.72 ->
-  // 1.71 deg, the whole ring's 0.35 -> 0.24 deg, fountain-P11's centres 3.08 -> 2.56 mm.
+  // 1.71 deg, the whole ring's 0.35 -> 0.23 deg, fountain-P11's centres 3.08 -> 2.53 mm.
   // 0 turns it off; otherwise >= 3.
   double final_outlier_multiple = 6.0;
   double final_min_outlier_px = 0.5;  // (0, ...)
