@@ -285,8 +285,15 @@ bool CovarianceBySchur(int num_threads,
   std::vector<Eigen::Triplet<double>> inverse_v;
   inverse_v.reserve(static_cast<std::size_t>(num_point_columns) * 3);
   for (int j = 0; j < num_point_columns; j += 3) {
-    const SparseMatrix columns = point_jacobian.middleCols(j, 3);
-    const Eigen::Matrix3d v = Eigen::Matrix3d(columns.transpose() * columns);
+    // Dot products of the point's three sparse columns. (Not columns.transpose() * columns:
+    // that transpose allocates and clears one entry per residual row, for every point, and
+    // took 100 of the 110 s of the final adjustment of 100 rendered photos, 631k observations.)
+    Eigen::Matrix3d v;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = r; c < 3; ++c) {
+        v(r, c) = v(c, r) = point_jacobian.col(j + r).dot(point_jacobian.col(j + c));
+      }
+    }
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(v);
     const Eigen::Vector3d values = eigen.eigenvalues();
     Eigen::Vector3d inverse_values = Eigen::Vector3d::Zero();
