@@ -3,12 +3,14 @@
 #include "core/util/logging.h"
 
 #include <Eigen/Geometry>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace reconduit {
@@ -68,12 +70,34 @@ Eigen::VectorXd SampsonResiduals(const Eigen::Matrix3d& r,
   return residuals;
 }
 
-// Levenberg-Marquardt on the Sampson distances of the inliers over the 5 degrees of freedom
-// of (R, t / |t|): RANSAC's minimal-sample model is off by about half a degree at 0.5 px noise.
+// Cauchy loss of the Sampson distances at scale `scale`: sum of log(1 + (r / scale)^2); the
+// sum of squares for an infinite scale.
+double RobustCost(const Eigen::VectorXd& residuals, double scale) {
+  if (std::isinf(scale)) return residuals.squaredNorm();
+  return (residuals.array() / scale).square().log1p().sum();
+}
+
+// Depths of a correspondence's point along both rays (x2 d2 = R x1 d1 + t, least squares).
+Eigen::Vector2d Depths(const Eigen::Matrix3d& r,
+                       const Eigen::Vector3d& t,
+                       const Eigen::Vector3d& x1,
+                       const Eigen::Vector3d& x2) {
+  Eigen::Matrix<double, 3, 2> a;
+  a.col(0) = r * x1;
+  a.col(1) = -x2;
+  return a.colPivHouseholderQr().solve(-t);
+}
+
+}  // namespace
+
 void RefineRelativePose(const std::vector<Eigen::Vector3d>& x1,
                         const std::vector<Eigen::Vector3d>& x2,
+                        double scale,
                         Eigen::Matrix3d* r,
                         Eigen::Vector3d* t) {
+  THROW_CHECK_EQ(x1.size(), x2.size());
+  THROW_CHECK(scale > 0) << "scale must be positive";
+  if (x1.size() < 5) return;
   auto apply = [&](const Eigen::Matrix<double, 5, 1>& d, Eigen::Matrix3d* r_out,
                    Eigen::Vector3d* t_out) {
     const Eigen::Vector3d w = d.head<3>();
@@ -85,9 +109,15 @@ void RefineRelativePose(const std::vector<Eigen::Vector3d>& x1,
     Eigen::Vector3d b2 = t->cross(b1).normalized();
     *t_out = (*t + d[3] * b1 + d[4] * b2).normalized();
   };
+  t->normalize();
   double lambda = 1e-3;
   Eigen::VectorXd residuals = SampsonResiduals(*r, *t, x1, x2);
-  for (int iteration = 0; iteration < 20; ++iteration) {
+  double cost = RobustCost(residuals, scale);
+  for (int iteration = 0; iteration < 50; ++iteration) {
+    // Iteratively reweighted: the Cauchy weight 1 / (1 + (r / scale)^2) of each residual.
+    const Eigen::VectorXd weights =
+        std::isinf(scale) ? Eigen::VectorXd::Ones(residuals.size())
+                          : Eigen::VectorXd(((residuals.array() / scale).square() + 1.0).inverse());
     Eigen::MatrixXd jacobian(residuals.size(), 5);
     const double h = 1e-7;
     for (int k = 0; k < 5; ++k) {
@@ -98,9 +128,10 @@ void RefineRelativePose(const std::vector<Eigen::Vector3d>& x1,
       apply(d, &rp, &tp);
       jacobian.col(k) = (SampsonResiduals(rp, tp, x1, x2) - residuals) / h;
     }
-    const Eigen::Matrix<double, 5, 5> jtj = jacobian.transpose() * jacobian;
-    const Eigen::Matrix<double, 5, 1> jtr = jacobian.transpose() * residuals;
+    const Eigen::Matrix<double, 5, 5> jtj = jacobian.transpose() * weights.asDiagonal() * jacobian;
+    const Eigen::Matrix<double, 5, 1> jtr = jacobian.transpose() * weights.cwiseProduct(residuals);
     bool improved = false;
+    double decrease = 0.0;
     for (int tries = 0; tries < 10 && !improved; ++tries) {
       Eigen::Matrix<double, 5, 5> damped = jtj;
       damped.diagonal() *= 1.0 + lambda;
@@ -109,21 +140,22 @@ void RefineRelativePose(const std::vector<Eigen::Vector3d>& x1,
       Eigen::Vector3d tp;
       apply(d, &rp, &tp);
       const Eigen::VectorXd candidate = SampsonResiduals(rp, tp, x1, x2);
-      if (d.allFinite() && candidate.squaredNorm() < residuals.squaredNorm()) {
+      const double candidate_cost = RobustCost(candidate, scale);
+      if (d.allFinite() && candidate_cost < cost) {
+        decrease = (cost - candidate_cost) / std::max(cost, 1e-300);
         *r = rp;
         *t = tp;
         residuals = candidate;
+        cost = candidate_cost;
         lambda = std::max(1e-9, lambda / 10);
         improved = true;
       } else {
         lambda *= 10;
       }
     }
-    if (!improved) break;
+    if (!improved || decrease < 1e-10) break;
   }
 }
-
-}  // namespace
 
 bool RelativeRegistrationOptions::Check(std::string* error) const {
   std::ostringstream m;
@@ -174,14 +206,37 @@ std::optional<PairPose> EstimateRelativePose(const std::vector<Eigen::Vector2d>&
   cv::cv2eigen(t_cv, t);
   std::vector<Eigen::Vector3d> x1, x2;
   for (std::size_t i = 0; i < registered.size(); ++i) {
-    if (!mask.at<std::uint8_t>(static_cast<int>(i))) continue;
     x1.push_back(registered[i].homogeneous());
     x2.push_back(fresh[i].homogeneous());
   }
-  t.normalize();
-  RefineRelativePose(x1, x2, &r, &t);
-
-  return PairPose{Rigid3d(r, t), in_front};
+  // Every correspondence, not only RANSAC's inliers (see RefineRelativePose), then least
+  // squares over the inliers of that pose: the Cauchy loss at the threshold also discounts
+  // inliers a pixel off, which costs some precision at the optimum.
+  const double threshold = options.max_epipolar_error_px / focal_px;
+  RefineRelativePose(x1, x2, threshold, &r, &t);
+  PairPose pose;
+  const auto classify = [&] {
+    const Eigen::VectorXd residuals = SampsonResiduals(r, t, x1, x2);
+    pose.inliers.assign(x1.size(), false);
+    pose.num_inliers = 0;
+    for (std::size_t i = 0; i < x1.size(); ++i) {
+      pose.inliers[i] =
+          std::abs(residuals[i]) < threshold && Depths(r, t, x1[i], x2[i]).minCoeff() > 0;
+      pose.num_inliers += pose.inliers[i];
+    }
+  };
+  classify();
+  std::vector<Eigen::Vector3d> y1, y2;
+  for (std::size_t i = 0; i < x1.size(); ++i) {
+    if (!pose.inliers[i]) continue;
+    y1.push_back(x1[i]);
+    y2.push_back(x2[i]);
+  }
+  RefineRelativePose(y1, y2, std::numeric_limits<double>::infinity(), &r, &t);
+  classify();
+  pose.new_from_registered = Rigid3d(r, t);
+  if (pose.num_inliers < options.min_pair_inliers) return std::nullopt;
+  return pose;
 }
 
 std::optional<RelativeRegistration> RegisterFromPoints(

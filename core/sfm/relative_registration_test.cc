@@ -61,7 +61,9 @@ TEST(EstimateRelativePose, RecoversRotationAndBaselineDirection) {
   const auto pose = PairPoseOf(scene, 0, 1);
   ASSERT_TRUE(pose.has_value());
   const Rigid3d truth = RelativePose(scene, 0, 1);
-  EXPECT_LT(RotationErrorDeg(pose->new_from_registered, truth), 0.2);
+  // Two views leave the rotation this uncertain at 0.5 px: least squares over the true
+  // inliers, started from the truth, ends 0.37 deg from it on this pair.
+  EXPECT_LT(RotationErrorDeg(pose->new_from_registered, truth), 0.5);
   const double cosine = pose->new_from_registered.translation.dot(truth.translation.normalized());
   EXPECT_GT(cosine, std::cos(1.0 * M_PI / 180.0));
   EXPECT_NEAR(pose->new_from_registered.translation.norm(), 1.0, 1e-9);
@@ -76,6 +78,72 @@ TEST(EstimateRelativePose, TooFewMatches) {
     b.push_back(Normalized(scene.images[1], c.pixel2));
   }
   EXPECT_FALSE(EstimateRelativePose(a, b, 800, RelativeRegistrationOptions()).has_value());
+}
+
+// Over many scenes (8 photos 45 deg apart, 300 points, 1 px noise, 10 % outliers), pair 0-1:
+// measured 1.12 deg on average over 30 scenes, against 0.86 for least squares over the true
+// inliers started from the truth, and 3.38 before the refinement ran over every
+// correspondence with a robust loss (least squares over RANSAC's inliers from its sample).
+TEST(EstimateRelativePose, AccurateOverManyScenes) {
+  double sum = 0.0;
+  int pairs = 0;
+  for (int seed = 1; seed <= 30; ++seed) {
+    SyntheticSceneOptions options;
+    options.num_cameras = 8;
+    options.num_points = 300;
+    options.focal = 800;
+    options.width = 1024;
+    options.height = 768;
+    options.pixel_noise_stddev = 1.0;
+    options.outlier_fraction = 0.1;
+    options.seed = seed;
+    const SyntheticScene scene = SynthesizeScene(options);
+    const auto pose = PairPoseOf(scene, 0, 1);
+    if (!pose) continue;
+    sum += RotationErrorDeg(pose->new_from_registered, RelativePose(scene, 0, 1));
+    ++pairs;
+  }
+  ASSERT_GE(pairs, 25);
+  EXPECT_LT(sum / pairs, 1.6);
+}
+
+// A small object (one box 1 m across seen from 6 m, photos 22.5 deg apart): the Sampson
+// error's valley, where the rotation trades off against the depths, is long and flat, and
+// RANSAC's pose can lie anywhere along it. Started 10 deg off, the refinement ends where it
+// ends from the truth.
+TEST(RefineRelativePose, FindsTheOptimumFromFarAlongTheValley) {
+  SyntheticSceneOptions options;
+  options.num_cameras = 16;
+  options.num_boxes = 1;
+  options.scene_radius = 1.0;
+  options.camera_height = 1.0;
+  options.num_points = 120;
+  options.focal = 800;
+  options.width = 1024;
+  options.height = 768;
+  options.pixel_noise_stddev = 0.5;
+  options.outlier_fraction = 0.1;
+  options.seed = 4;
+  const SyntheticScene scene = SynthesizeScene(options);
+  std::vector<Eigen::Vector3d> x1, x2;
+  for (const SyntheticCorrespondence& c : FindCorrespondences(scene, 0, 1)) {
+    x1.push_back(Normalized(scene.images[0], c.pixel1).homogeneous());
+    x2.push_back(Normalized(scene.images[1], c.pixel2).homogeneous());
+  }
+  ASSERT_GE(x1.size(), 60u);
+  const Rigid3d truth = RelativePose(scene, 0, 1);
+  const double scale = 1.5 / 800;
+  Eigen::Matrix3d r_optimum = truth.rotation.toRotationMatrix();
+  Eigen::Vector3d t_optimum = truth.translation.normalized();
+  RefineRelativePose(x1, x2, scale, &r_optimum, &t_optimum);
+  for (const Eigen::Vector3d& axis : {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)}) {
+    Eigen::Matrix3d r = Eigen::AngleAxisd(10.0 * M_PI / 180.0, axis) * r_optimum;
+    Eigen::Vector3d t = t_optimum;
+    RefineRelativePose(x1, x2, scale, &r, &t);
+    EXPECT_LT(Eigen::AngleAxisd(r * r_optimum.transpose()).angle() * 180.0 / M_PI, 0.05)
+        << "started 10 deg off about " << axis.transpose();
+    EXPECT_GT(t.dot(t_optimum), std::cos(0.5 * M_PI / 180.0));
+  }
 }
 
 // The scale from a handful of points (8, a few of them wrong: fewer than PnP's 20).
@@ -107,7 +175,7 @@ TEST(RegisterFromPoints, ScaleFromAFewPointsWithOutliers) {
   ASSERT_TRUE(registration.has_value());
   EXPECT_EQ(registration->num_points, 6);
   const Rigid3d truth = model_pose(scene.images[1].cam_from_world);
-  EXPECT_LT(RotationErrorDeg(registration->cam_from_world, truth), 0.2);
+  EXPECT_LT(RotationErrorDeg(registration->cam_from_world, truth), 0.5);  // The pair's.
   const double baseline =
       CentreError(scene.images[0].cam_from_world, scene.images[1].cam_from_world);
   EXPECT_LT(CentreError(registration->cam_from_world, truth), 0.02 * s * baseline);
