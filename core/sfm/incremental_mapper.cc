@@ -332,8 +332,6 @@ class Mapper {
   // A weak initial pair whose essential-matrix inliers a homography fits beyond this share
   // (at 3 px, see TryInitialPair) is refused (COLMAP's initial pair uses a similar H/E ratio).
   static constexpr double kMaxWeakHomographyShare = 0.8;
-  // The initial pair's essential-matrix threshold, pixels.
-  static constexpr double kInitialEpipolarErrorPx = 1.5;
 
   bool Initialize(Reconstruction* model) {
     InitialPairBar bar;
@@ -418,9 +416,8 @@ class Mapper {
     // small object's RANSAC pose can be many degrees off. The dim ring of
     // tests/few_features_test detected at the usual SIFT threshold started from a pair whose
     // median triangulation angle came out 45 deg for photos 22 deg apart; refined, 24 deg.
-    RelativeRegistrationOptions relative;
+    RelativeRegistrationOptions relative;  // Its 1.5 px threshold.
     relative.min_pair_inliers = 8;
-    relative.max_epipolar_error_px = kInitialEpipolarErrorPx;
     const double focal = 0.5 * (camera1.focal + camera2.focal);
     const std::optional<PairPose> pose = EstimateRelativePose(p1, p2, focal, relative);
     const int in_front = pose ? pose->num_inliers : 0;
@@ -442,7 +439,7 @@ class Mapper {
       cv::Mat h_mask;
       // The transfer error puts both photos' noise into one: twice the essential matrix's
       // 1.5 px (at 0.5 px noise a pure rotation's matches fit at 1.5 px 25 of 40, at 3 px 38).
-      const cv::Mat h = cv::findHomography(q1, q2, cv::RANSAC, 2.0 * kInitialEpipolarErrorPx,
+      const cv::Mat h = cv::findHomography(q1, q2, cv::RANSAC, 2.0 * relative.max_epipolar_error_px,
                                            h_mask, 2000, 0.999);
       const int h_inliers = h.empty() ? 0 : cv::countNonZero(h_mask);
       if (h_inliers > kMaxWeakHomographyShare * q1.size()) {
