@@ -10,11 +10,9 @@ namespace {
 
 // 8 photos on a ring 45 deg apart (templeSparseRing every second photo), f = 800 px, 0.5 px
 // noise, 5 % outliers.
-SyntheticScene WideRing(int num_cameras = 8,
-                        SyntheticCameraLayout layout = SyntheticCameraLayout::kRing) {
+SyntheticSceneOptions RingOptions() {
   SyntheticSceneOptions options;
-  options.num_cameras = num_cameras;
-  options.layout = layout;
+  options.num_cameras = 8;
   options.num_points = 800;
   options.focal = 800;
   options.width = 1024;
@@ -22,6 +20,14 @@ SyntheticScene WideRing(int num_cameras = 8,
   options.pixel_noise_stddev = 0.5;
   options.outlier_fraction = 0.05;
   options.seed = 21;
+  return options;
+}
+
+SyntheticScene WideRing(int num_cameras = 8,
+                        SyntheticCameraLayout layout = SyntheticCameraLayout::kRing) {
+  SyntheticSceneOptions options = RingOptions();
+  options.num_cameras = num_cameras;
+  options.layout = layout;
   return SynthesizeScene(options);
 }
 
@@ -88,12 +94,8 @@ TEST(EstimateRelativePose, AccurateOverManyScenes) {
   double sum = 0.0;
   int pairs = 0;
   for (int seed = 1; seed <= 30; ++seed) {
-    SyntheticSceneOptions options;
-    options.num_cameras = 8;
+    SyntheticSceneOptions options = RingOptions();
     options.num_points = 300;
-    options.focal = 800;
-    options.width = 1024;
-    options.height = 768;
     options.pixel_noise_stddev = 1.0;
     options.outlier_fraction = 0.1;
     options.seed = seed;
@@ -112,16 +114,12 @@ TEST(EstimateRelativePose, AccurateOverManyScenes) {
 // RANSAC's pose can lie anywhere along it. Started 10 deg off, the refinement ends where it
 // ends from the truth.
 TEST(RefineRelativePose, FindsTheOptimumFromFarAlongTheValley) {
-  SyntheticSceneOptions options;
+  SyntheticSceneOptions options = RingOptions();
   options.num_cameras = 16;
   options.num_boxes = 1;
   options.scene_radius = 1.0;
   options.camera_height = 1.0;
   options.num_points = 120;
-  options.focal = 800;
-  options.width = 1024;
-  options.height = 768;
-  options.pixel_noise_stddev = 0.5;
   options.outlier_fraction = 0.1;
   options.seed = 4;
   const SyntheticScene scene = SynthesizeScene(options);
