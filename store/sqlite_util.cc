@@ -140,7 +140,10 @@ bool Statement::Step() {
   // The statement must be reset before the connection reports the specific error code
   // consistently; reset returns the same code.
   sqlite3_reset(stmt_);
-  throw SqliteError(SqliteStatus(rc, db_, "run \"" + sql_ + "\""));
+  // Marked busy like every other call's SQLITE_BUSY, so SqliteJobStore retries it: an
+  // autocommit UPDATE meets the lock here, not at a BEGIN (a worker's progress report behind
+  // another process's claim used to fail the worker at once).
+  throw SqliteError(SqliteStatus(rc, db_, "run \"" + sql_ + "\""), IsSqliteBusy(rc));
 }
 
 void Statement::Run() {

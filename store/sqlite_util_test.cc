@@ -84,6 +84,25 @@ TEST(Transaction, RollsBackUnlessCommitted) {
   EXPECT_EQ(db.QueryInt64("SELECT count(*) FROM t", "count"), 1);
 }
 
+// A single-statement write meets another connection's write lock inside Step (autocommit):
+// its error says busy, so callers retry it like a busy BEGIN.
+TEST(Statement, WriteBehindAnotherWriterIsBusy) {
+  TempDir dir;
+  SqliteConnection first = SqliteConnection::Open(dir.File("t.db"));
+  SqliteConnection second = SqliteConnection::Open(dir.File("t.db"));
+  first.Exec("PRAGMA journal_mode = WAL", "wal");
+  first.Exec("CREATE TABLE t (x INTEGER)", "create");
+  Transaction holder(first, Transaction::Mode::kImmediate);
+  Statement update(second.get(), "UPDATE t SET x = 1");
+  try {
+    update.Run();
+    FAIL() << "the UPDATE should have failed while another connection writes";
+  } catch (const SqliteError& e) {
+    EXPECT_TRUE(e.busy()) << e.status();
+    EXPECT_EQ(e.status().code(), StatusCode::kResourceExhausted) << e.status();
+  }
+}
+
 TEST(Transaction, SecondWriterWithoutBusyTimeoutGetsResourceExhausted) {
   TempDir dir;
   SqliteConnection first = SqliteConnection::Open(dir.File("t.db"));
