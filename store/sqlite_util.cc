@@ -82,7 +82,7 @@ std::int64_t SqliteConnection::QueryInt64(const char* sql, std::string_view cont
     return statement.Int64(0);
   } catch (const SqliteError& e) {
     const Status& s = e.status();
-    throw SqliteError(Status(s.code(), std::string(context) + ": " + s.message()));
+    throw SqliteError(Status(s.code(), std::string(context) + ": " + s.message()), e.busy());
   }
 }
 
