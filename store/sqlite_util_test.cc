@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "store/store_test_util.h"
+#include <optional>
 
 namespace reconduit {
 namespace {
@@ -84,16 +85,24 @@ TEST(Transaction, RollsBackUnlessCommitted) {
   EXPECT_EQ(db.QueryInt64("SELECT count(*) FROM t", "count"), 1);
 }
 
-// A single-statement write meets another connection's write lock inside Step (autocommit):
-// its error says busy, so callers retry it like a busy BEGIN.
-TEST(Statement, WriteBehindAnotherWriterIsBusy) {
+// Two connections to one WAL database with a table t; the first holds the write lock.
+struct LockedDatabase {
+  LockedDatabase() {
+    first.Exec("PRAGMA journal_mode = WAL", "wal");
+    first.Exec("CREATE TABLE t (x INTEGER)", "create");
+    holder.emplace(first, Transaction::Mode::kImmediate);
+  }
   TempDir dir;
   SqliteConnection first = SqliteConnection::Open(dir.File("t.db"));
   SqliteConnection second = SqliteConnection::Open(dir.File("t.db"));
-  first.Exec("PRAGMA journal_mode = WAL", "wal");
-  first.Exec("CREATE TABLE t (x INTEGER)", "create");
-  Transaction holder(first, Transaction::Mode::kImmediate);
-  Statement update(second.get(), "UPDATE t SET x = 1");
+  std::optional<Transaction> holder;
+};
+
+// A single-statement write meets another connection's write lock inside Step (autocommit):
+// its error says busy, so callers retry it like a busy BEGIN.
+TEST(Statement, WriteBehindAnotherWriterIsBusy) {
+  LockedDatabase db;
+  Statement update(db.second.get(), "UPDATE t SET x = 1");
   try {
     update.Run();
     FAIL() << "the UPDATE should have failed while another connection writes";
@@ -104,19 +113,15 @@ TEST(Statement, WriteBehindAnotherWriterIsBusy) {
 }
 
 TEST(Transaction, SecondWriterWithoutBusyTimeoutGetsResourceExhausted) {
-  TempDir dir;
-  SqliteConnection first = SqliteConnection::Open(dir.File("t.db"));
-  SqliteConnection second = SqliteConnection::Open(dir.File("t.db"));
-  first.Exec("PRAGMA journal_mode = WAL", "wal");
-  first.Exec("CREATE TABLE t (x INTEGER)", "create");
-  Transaction holder(first, Transaction::Mode::kImmediate);
+  LockedDatabase db;
   try {
-    Transaction blocked(second, Transaction::Mode::kImmediate);
+    Transaction blocked(db.second, Transaction::Mode::kImmediate);
     FAIL() << "BEGIN IMMEDIATE should have failed while another connection writes";
   } catch (const SqliteError& e) {
     EXPECT_EQ(e.status().code(), StatusCode::kResourceExhausted) << e.status();
+    EXPECT_TRUE(e.busy()) << e.status();
   }
-  EXPECT_TRUE(second.InAutocommit());
+  EXPECT_TRUE(db.second.InAutocommit());
 }
 
 TEST(SqliteStatus, MapsCodes) {
