@@ -5,7 +5,11 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <limits>
 #include <random>
+#include <utility>
+#include <vector>
 
 namespace reconduit {
 namespace {
@@ -125,6 +129,128 @@ TEST(MatchDescriptors, EmptyInputGivesNoMatches) {
   std::mt19937 rng(1);
   EXPECT_TRUE(MatchDescriptors(DescriptorMatrix(0, 128), RandomUnitRows(5, rng), {}).empty());
   EXPECT_TRUE(MatchDescriptors(RandomUnitRows(5, rng), DescriptorMatrix(0, 128), {}).empty());
+}
+
+// Descriptors whose entries are multiples of 1/32 below 1: every product and sum of a squared
+// distance is then exact in float, in whatever order sgemm, Eigen or a plain loop adds them, so
+// equal distances are bit-equal in MatchDescriptors too and a reference can be compared exactly
+// (ties included). Bases: six entries of 8/32 .. 16/32, the other 122 zero.
+DescriptorMatrix GridBases(int n, std::mt19937& rng) {
+  std::uniform_int_distribution<int> dim(0, 127), value(8, 16);
+  DescriptorMatrix m = DescriptorMatrix::Zero(n, 128);
+  for (int r = 0; r < n; ++r) {
+    for (int k = 0; k < 6; ++k) m(r, dim(rng)) = static_cast<float>(value(rng)) / 32.0f;
+  }
+  return m;
+}
+
+// n rows, each a random base plus 0 .. max_steps steps of ±1/32 (0 steps: an exact duplicate).
+DescriptorMatrix GridRows(const DescriptorMatrix& bases, int n, int max_steps, std::mt19937& rng) {
+  std::uniform_int_distribution<int> base(0, static_cast<int>(bases.rows()) - 1), dim(0, 127),
+      steps(0, max_steps), sign(0, 1);
+  DescriptorMatrix m(n, 128);
+  for (int r = 0; r < n; ++r) {
+    m.row(r) = bases.row(base(rng));
+    for (int s = steps(rng); s > 0; --s) m(r, dim(rng)) += sign(rng) ? 1.0f / 32 : -1.0f / 32;
+  }
+  return m;
+}
+
+// All squared distances, row-major n1 x n2; exact for GridRows descriptors.
+std::vector<float> SquaredDistances(const DescriptorMatrix& a, const DescriptorMatrix& b) {
+  std::vector<float> d;
+  d.reserve(static_cast<std::size_t>(a.rows()) * b.rows());
+  for (int i = 0; i < a.rows(); ++i) {
+    for (int j = 0; j < b.rows(); ++j) d.push_back((a.row(i) - b.row(j)).squaredNorm());
+  }
+  return d;
+}
+
+// Brute force with MatchDescriptors' rules on exact squared distances: the nearest is the lowest
+// index among equal distances, the second nearest the smallest distance of all the others (equal
+// to the nearest's when it repeats, which fails any ratio test); the distance and ratio tests
+// compare squared distances in float. Counts the ties the comparison depends on.
+struct ReferenceTies {
+  int repeated_minima = 0;  // Rows within max_distance whose smallest distance repeats.
+  int column_ties = 0;      // Cross-checked matches whose column's smallest distance repeats.
+};
+
+std::vector<std::pair<int, int>> ReferenceMatch(
+    const std::vector<float>& d, int n1, int n2, const MatchingOptions& o, ReferenceTies* ties) {
+  const auto at = [&](int i, int j) { return d[static_cast<std::size_t>(i) * n2 + j]; };
+  const float inf = std::numeric_limits<float>::infinity();
+  const float max_distance2 = static_cast<float>(o.max_distance * o.max_distance);
+  const float max_ratio2 = static_cast<float>(o.max_ratio * o.max_ratio);
+  std::vector<std::pair<int, int>> matches;
+  for (int i = 0; i < n1; ++i) {
+    float d1 = inf;
+    for (int j = 0; j < n2; ++j) d1 = std::min(d1, at(i, j));
+    int nearest = 0;
+    while (at(i, nearest) != d1) ++nearest;
+    float d2 = inf;
+    for (int j = 0; j < n2; ++j) {
+      if (j != nearest) d2 = std::min(d2, at(i, j));
+    }
+    if (d1 > max_distance2) continue;
+    if (d2 == d1) ++ties->repeated_minima;
+    if (d1 >= max_ratio2 * d2) continue;
+    float column_d1 = inf;
+    for (int k = 0; k < n1; ++k) column_d1 = std::min(column_d1, at(k, nearest));
+    int column_nearest = 0, column_count = 0;
+    for (int k = n1 - 1; k >= 0; --k) {
+      if (at(k, nearest) == column_d1) {
+        column_nearest = k;
+        ++column_count;
+      }
+    }
+    if (o.cross_check) {
+      if (column_nearest != i) continue;
+      if (column_count > 1) ++ties->column_ties;
+    }
+    matches.emplace_back(i, nearest);
+  }
+  return matches;
+}
+
+TEST(MatchDescriptors, EqualsBruteForceExactlyWithTiesOddSizesAndSeveralBlocks) {
+  struct Case {
+    int n1, n2;
+    int bases;      // Fewer bases: more exact duplicates, more ties.
+    int max_steps;  // Steps of 1/32 away from the base.
+  };
+  // Tiny sizes, and sizes on and off the 32 columns MatchDescriptors screens at a time and the
+  // 1024 rows of one matrix-product block.
+  const Case cases[] = {
+      {1, 1, 1, 0},        {1, 1, 1, 2},      {1, 300, 20, 2},      {300, 1, 20, 2},
+      {1, 31, 2, 1},       {31, 1, 2, 1},     {5, 32, 3, 1},        {17, 33, 4, 1},
+      {40, 200, 1, 2},     {70, 65, 5, 2},    {1024, 64, 30, 2},    {1025, 100, 40, 2},
+      {1100, 1037, 60, 3}, {2049, 47, 20, 2}, {1500, 1001, 300, 6},
+  };
+  std::mt19937 rng(21);
+  ReferenceTies ties;
+  for (const Case& c : cases) {
+    const DescriptorMatrix bases = GridBases(c.bases, rng);
+    const DescriptorMatrix a = GridRows(bases, c.n1, c.max_steps, rng);
+    const DescriptorMatrix b = GridRows(bases, c.n2, c.max_steps, rng);
+    const std::vector<float> distances = SquaredDistances(a, b);
+    for (const bool cross_check : {true, false}) {
+      for (const double max_ratio : {0.8, 1.0}) {
+        SCOPED_TRACE(testing::Message() << c.n1 << " x " << c.n2 << ", cross_check " << cross_check
+                                        << ", max_ratio " << max_ratio);
+        MatchingOptions options;
+        options.cross_check = cross_check;
+        options.max_ratio = max_ratio;
+        std::vector<std::pair<int, int>> fast;
+        for (const FeatureMatch& m : MatchDescriptors(a, b, options)) {
+          fast.emplace_back(m.index1, m.index2);
+        }
+        EXPECT_EQ(fast, ReferenceMatch(distances, c.n1, c.n2, options, &ties));
+      }
+    }
+  }
+  // The data exercises both tie rules.
+  EXPECT_GT(ties.repeated_minima, 100);
+  EXPECT_GT(ties.column_ties, 100);
 }
 
 TEST(ToDescriptorMatrix, RowsHaveUnitNorm) {
