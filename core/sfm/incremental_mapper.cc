@@ -706,6 +706,7 @@ class Mapper {
     const MapperImage& image = input_.images.at(id);
     const Camera& camera = model.cameras.at(image.camera_id);
     std::vector<std::pair<NeighbourPose, int>> neighbours;  // With the neighbour's id.
+    int low_parallax = 0;  // Pairs whose pose leaves the baseline's direction undetermined.
     for (const MapperPair* pair : pairs) {
       const bool registered_first = pair->image1 != id;
       const int other = registered_first ? pair->image1 : pair->image2;
@@ -722,6 +723,14 @@ class Mapper {
       }
       const double focal = 0.5 * (camera.focal + other_camera.focal);
       if (auto relative = EstimateRelativePose(a, b, focal, options_.relative)) {
+        if (relative->median_parallax_deg < options_.relative.min_median_parallax_deg) {
+          ++low_parallax;
+          LOG_DEBUG << "sfm: " << image.name << " - " << input_.images.at(other).name
+                    << ": relative pose with " << relative->num_inliers
+                    << " inliers refused, median parallax " << relative->median_parallax_deg
+                    << " deg";
+          continue;
+        }
         neighbours.push_back({{neighbour.cam_from_world, *relative}, other});
       }
     }
@@ -753,9 +762,12 @@ class Mapper {
       *how = "from the rays of " + std::to_string(r->num_rays) + " neighbours";
       return r->cam_from_world;
     }
-    *how = std::to_string(neighbours.size()) + " of " + std::to_string(pairs.size()) +
-           " pairs with a relative pose, " + std::to_string(points.size()) +
-           " points seen: no scale";
+    *how =
+        std::to_string(neighbours.size()) + " of " + std::to_string(pairs.size()) +
+        " pairs with a relative pose" +
+        (low_parallax > 0 ? " (" + std::to_string(low_parallax) + " more with too little parallax)"
+                          : "") +
+        ", " + std::to_string(points.size()) + " points seen: no scale";
     return std::nullopt;
   }
 

@@ -171,6 +171,8 @@ bool RelativeRegistrationOptions::Check(std::string* error) const {
     m << "min_ray_angle_deg must be in (0, 90), got " << min_ray_angle_deg;
   } else if (!(max_ray_disagreement_deg > 0 && max_ray_disagreement_deg < 90)) {
     m << "max_ray_disagreement_deg must be in (0, 90), got " << max_ray_disagreement_deg;
+  } else if (!(min_median_parallax_deg >= 0 && min_median_parallax_deg < 90)) {
+    m << "min_median_parallax_deg must be in [0, 90), got " << min_median_parallax_deg;
   } else {
     return true;
   }
@@ -236,6 +238,14 @@ std::optional<PairPose> EstimateRelativePose(const std::vector<Eigen::Vector2d>&
   classify();
   pose.new_from_registered = Rigid3d(r, t);
   if (pose.num_inliers < options.min_pair_inliers) return std::nullopt;
+  std::vector<double> parallax;
+  for (std::size_t i = 0; i < x1.size(); ++i) {
+    if (!pose.inliers[i]) continue;
+    const Eigen::Vector3d ray2 = r.transpose() * x2[i];  // In the registered photo's frame.
+    parallax.push_back(Degrees(std::atan2(x1[i].cross(ray2).norm(), x1[i].dot(ray2))));
+  }
+  std::nth_element(parallax.begin(), parallax.begin() + parallax.size() / 2, parallax.end());
+  pose.median_parallax_deg = parallax[parallax.size() / 2];
   return pose;
 }
 

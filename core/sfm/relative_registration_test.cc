@@ -60,6 +60,10 @@ TEST(RelativeRegistrationOptions, DefaultsAreValid) {
   bad.min_scale_points = 1;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("min_scale_points"), std::string::npos);
+  bad = RelativeRegistrationOptions();
+  bad.min_median_parallax_deg = -1.0;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("min_median_parallax_deg"), std::string::npos);
 }
 
 TEST(EstimateRelativePose, RecoversRotationAndBaselineDirection) {
@@ -73,6 +77,48 @@ TEST(EstimateRelativePose, RecoversRotationAndBaselineDirection) {
   const double cosine = pose->new_from_registered.translation.dot(truth.translation.normalized());
   EXPECT_GT(cosine, std::cos(1.0 * M_PI / 180.0));
   EXPECT_NEAR(pose->new_from_registered.translation.norm(), 1.0, 1e-9);
+}
+
+// The median angle the true points seen by both photos subtend at their centres, degrees.
+double TrueMedianParallaxDeg(const SyntheticScene& scene, int image1, int image2) {
+  const Eigen::Vector3d c1 = scene.images[image1].cam_from_world.CenterInWorld();
+  const Eigen::Vector3d c2 = scene.images[image2].cam_from_world.CenterInWorld();
+  std::vector<double> angles;
+  for (const SyntheticCorrespondence& c : FindCorrespondences(scene, image1, image2)) {
+    if (c.is_outlier) continue;
+    const Eigen::Vector3d a = scene.points3D[c.point_index] - c1;
+    const Eigen::Vector3d b = scene.points3D[c.point_index] - c2;
+    angles.push_back(std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / M_PI);
+  }
+  std::nth_element(angles.begin(), angles.begin() + angles.size() / 2, angles.end());
+  return angles[angles.size() / 2];
+}
+
+// The median parallax is the inliers' triangulation angle: 45 deg apart on the ring ...
+TEST(EstimateRelativePose, MedianParallaxIsTheTriangulationAngle) {
+  const SyntheticScene scene = WideRing();
+  const auto pose = PairPoseOf(scene, 0, 1);
+  ASSERT_TRUE(pose.has_value());
+  const double truth = TrueMedianParallaxDeg(scene, 0, 1);
+  EXPECT_GT(truth, 30.0);
+  EXPECT_NEAR(pose->median_parallax_deg, truth, 0.5);
+  EXPECT_GT(pose->median_parallax_deg, RelativeRegistrationOptions().min_median_parallax_deg);
+}
+
+// ... and 2 deg apart, where the baseline's direction rests on a few pixels of parallax: below
+// the bar for relative registration (min_median_parallax_deg).
+TEST(EstimateRelativePose, CloseCentresHaveLittleParallax) {
+  SyntheticSceneOptions options = RingOptions();
+  options.layout = SyntheticCameraLayout::kArc;
+  options.arc_deg = 2.0;
+  options.num_cameras = 2;
+  const SyntheticScene scene = SynthesizeScene(options);
+  const auto pose = PairPoseOf(scene, 0, 1);
+  ASSERT_TRUE(pose.has_value());
+  const double truth = TrueMedianParallaxDeg(scene, 0, 1);
+  EXPECT_NEAR(truth, 2.0, 0.5);
+  EXPECT_NEAR(pose->median_parallax_deg, truth, 0.5);
+  EXPECT_LT(pose->median_parallax_deg, RelativeRegistrationOptions().min_median_parallax_deg);
 }
 
 TEST(EstimateRelativePose, TooFewMatches) {
