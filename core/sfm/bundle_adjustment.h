@@ -80,6 +80,10 @@ struct BundleAdjustmentOptions {
   // The principal point: no by default; it is poorly constrained (it trades off against the
   // rotation) and the image centre is accurate for almost every camera.
   bool refine_principal_point = false;
+  // With refine_principal_point, one of its coordinates may still be held where it is (the
+  // mapper's principal-point decision refines only the coordinates the photos determine).
+  bool hold_principal_point_x = false;
+  bool hold_principal_point_y = false;
   // Radial distortion. Set refine_k2 = false for k1 only (weak geometry, few points near the
   // image border), both false to keep the distortion as given.
   bool refine_k1 = true;

@@ -590,8 +590,10 @@ void ParameterisePoses(const BundleAdjustmentOptions& options,
 std::vector<int> HeldIntrinsics(const BundleAdjustmentOptions& options) {
   std::vector<int> constant_intrinsics;
   if (!options.refine_focal) constant_intrinsics.push_back(kIntrinsicsFocal);
-  if (!options.refine_principal_point) {
+  if (!options.refine_principal_point || options.hold_principal_point_x) {
     constant_intrinsics.push_back(kIntrinsicsCx);
+  }
+  if (!options.refine_principal_point || options.hold_principal_point_y) {
     constant_intrinsics.push_back(kIntrinsicsCy);
   }
   if (!options.refine_k1) constant_intrinsics.push_back(kIntrinsicsK1);

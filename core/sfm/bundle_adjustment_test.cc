@@ -396,6 +396,39 @@ TEST(BundleAdjust, RefinesPrincipalPointAndK1OnlyWithSparseSchur) {
   EXPECT_EQ(camera.k2, 0.0);  // Held: bit-identical.
 }
 
+// One coordinate of the principal point held (the mapper's decision on a poorly determined
+// axis): it stays bit-identical, the other is refined to the truth, the rest absorbs nothing.
+TEST(BundleAdjust, HoldsOnePrincipalPointCoordinate) {
+  SyntheticSceneOptions scene_options = SmallSceneOptions();
+  scene_options.k2 = 0.0;
+  const TestScene scene = MakeScene(scene_options);
+  const Reconstruction& truth = scene.truth;
+  for (const bool hold_x : {true, false}) {
+    SCOPED_TRACE(hold_x ? "cx held" : "cy held");
+    Reconstruction rec = Perturb(truth, 2.0, 0.02, 0.02, 0.97, -0.02, /*seed=*/12);
+    rec.cameras.at(0).k2 = 0.0;
+    // The held coordinate starts at the truth, the refined one 4 px off it.
+    rec.cameras.at(0).cx = truth.cameras.at(0).cx + (hold_x ? 0.0 : 4.0);
+    rec.cameras.at(0).cy = truth.cameras.at(0).cy + (hold_x ? -4.0 : 0.0);
+    BundleAdjustmentOptions options = GaugeFixedOptions(truth);
+    options.refine_principal_point = true;
+    options.hold_principal_point_x = hold_x;
+    options.hold_principal_point_y = !hold_x;
+    options.refine_k2 = false;
+    const BundleAdjustmentSummary summary = BundleAdjust(options, CancelToken(), &rec);
+    ASSERT_TRUE(summary.success) << summary.BriefReport();
+    EXPECT_LT(summary.final_rms_px, 1e-6) << summary.BriefReport();
+    const Camera& camera = rec.cameras.at(0);
+    if (hold_x) {
+      EXPECT_EQ(camera.cx, truth.cameras.at(0).cx);  // Held: bit-identical.
+      EXPECT_NEAR(camera.cy, truth.cameras.at(0).cy, 1e-5);
+    } else {
+      EXPECT_EQ(camera.cy, truth.cameras.at(0).cy);
+      EXPECT_NEAR(camera.cx, truth.cameras.at(0).cx, 1e-5);
+    }
+  }
+}
+
 // Every linear solver reaches the same exact solution; kAuto picks by the number of variable
 // images and its thresholds.
 TEST(BundleAdjust, LinearSolversAgree) {

@@ -148,9 +148,14 @@ struct IncrementalMapperOptions {
   //            and the shift is plausible (at most `max_principal_point_shift` of the longer
   //            image side). On fountain-P11, whose principal point is 15 px off the centre,
   //            it is kept and cuts the camera-centre error from 6.3 to 2.7 mm; on the
-  //            synthetic ring above it is rejected.
+  //            synthetic ring above it is rejected. A coordinate the free solve determines
+  //            only poorly (`max_principal_point_stddev`) stays at the centre.
   PrincipalPointMode principal_point = PrincipalPointMode::kAuto;
   double max_principal_point_shift = 0.1;
+  // ... and each coordinate is refined only when the free solve determines it to this share
+  // of the longer image side (one standard deviation), else held at the centre and the other
+  // decided alone (DecidePrincipalPoint in incremental_mapper.cc has the measurements). > 0
+  double max_principal_point_stddev = 0.015;
   int min_images_for_principal_point = 8;
   int min_images_for_intrinsics = 4;
   // Focal search for the cameras in MapperInput::uncertain_focal_camera_ids, before the
