@@ -880,7 +880,9 @@ class Mapper {
   // known to no better than `max_principal_point_stddev` of the longer image side (1.5 %, in
   // the range of real cameras' offsets: 0.7 % on fountain-P11, 0.9 % on kermit, 2.7 % on
   // templeSparseRing) stays at the centre, where its error is then likely no larger than the
-  // estimate's; the other coordinate alone is decided again by the same test. Measured: a
+  // estimate's; the other coordinate alone is decided again by the same test (where the
+  // deviations cannot be estimated, beyond BundleAdjustmentOptions::max_poses_for_stddev
+  // photos, both are decided together as before). Measured: a
   // rendered inward arc of 10 photos over 270 deg (tests/sparse_pipeline_test) had cy 15 px
   // off at a standard deviation of 16 px, taken along with a significant 0.3 px move of cx
   // (0.06 px): relative rotations 1.44 deg; with cy held, 0.08 deg. The dim ring of
