@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <random>
 #include <utility>
@@ -375,6 +376,208 @@ TEST(GuidedMatchDescriptors, TwinOnTheEpipolarLineStaysAmbiguousAndStrangersStay
   for (const FeatureMatch& m : guided) {
     EXPECT_GE(m.index1, 50);
     EXPECT_EQ(m.index2, m.index1);
+  }
+}
+
+// The plain rule of GuidedMatchDescriptors' epipolar test, evaluated as the loop over all pairs
+// it replaced did (the same expressions, so the same roundings): Sampson distance² under
+// max_sampson_px².
+bool EpipolarCandidate(const Eigen::Matrix3d& F,
+                       const Eigen::Vector2d& x1,
+                       const Eigen::Vector2d& x2,
+                       double max_sampson_px) {
+  const Eigen::Vector3d line2 = F * x1.homogeneous();
+  const Eigen::Vector3d point2 = x2.homogeneous();
+  const double e = line2.dot(point2);
+  const double denominator =
+      line2.head<2>().squaredNorm() + (F.transpose() * point2).head<2>().squaredNorm();
+  return e * e <= max_sampson_px * max_sampson_px * denominator;
+}
+
+// The distances GuidedMatchDescriptors compares, by brute force: 2 - 2 a·b (exact for GridRows
+// descriptors) for the epipolar candidates, infinity elsewhere. ReferenceMatch on them applies
+// its rules (a non-candidate's infinity never is a nearest or second-nearest distance).
+std::vector<float> GuidedDistances(const DescriptorMatrix& a,
+                                   const DescriptorMatrix& b,
+                                   const std::vector<Eigen::Vector2d>& x1,
+                                   const std::vector<Eigen::Vector2d>& x2,
+                                   const Eigen::Matrix3d& F,
+                                   double max_sampson_px,
+                                   int* num_candidates) {
+  const int n1 = static_cast<int>(a.rows()), n2 = static_cast<int>(b.rows());
+  std::vector<float> d(static_cast<std::size_t>(n1) * n2, std::numeric_limits<float>::infinity());
+  for (int i = 0; i < n1; ++i) {
+    for (int j = 0; j < n2; ++j) {
+      if (!EpipolarCandidate(F, x1[i], x2[j], max_sampson_px)) continue;
+      d[static_cast<std::size_t>(i) * n2 + j] =
+          std::max(0.0f, 2.0f - 2.0f * a.row(i).dot(b.row(j)));
+      ++*num_candidates;
+    }
+  }
+  return d;
+}
+
+MatchingOptions AsMatchingOptions(const GuidedMatchingOptions& o) {
+  MatchingOptions m;
+  m.max_ratio = o.max_ratio;
+  m.max_distance = o.max_distance;
+  m.cross_check = o.cross_check;
+  return m;
+}
+
+std::vector<std::pair<int, int>> Guided(const DescriptorMatrix& a,
+                                        const DescriptorMatrix& b,
+                                        const std::vector<Eigen::Vector2d>& x1,
+                                        const std::vector<Eigen::Vector2d>& x2,
+                                        const Eigen::Matrix3d& F,
+                                        const GuidedMatchingOptions& options) {
+  std::vector<std::pair<int, int>> matches;
+  for (const FeatureMatch& m : GuidedMatchDescriptors(a, b, x1, x2, F, options)) {
+    matches.emplace_back(m.index1, m.index2);
+  }
+  return matches;
+}
+
+// Keypoints of image 2 for the guided matching of `x1`'s points: uniform ones, ones near the
+// epipolar line of a random point of x1 (0 to 3 px off, either side of 1.5 px), exact copies
+// of earlier ones, and pairs straddling the 1.5 px boundary as closely as doubles allow (the
+// last one that passes and the first that fails, by bisection along the line's normal), where a
+// different rounding of the test would show.
+std::vector<Eigen::Vector2d> GuidedKeypoints2(const Eigen::Matrix3d& F,
+                                              const std::vector<Eigen::Vector2d>& x1,
+                                              int n2,
+                                              std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::uniform_int_distribution<int> pick1(0, static_cast<int>(x1.size()) - 1);
+  std::vector<Eigen::Vector2d> x2;
+  while (static_cast<int>(x2.size()) < n2) {
+    const double kind = u(rng);
+    if (kind < 0.3 || x2.empty()) {
+      x2.emplace_back(800.0 * u(rng), 600.0 * u(rng));
+      continue;
+    }
+    if (kind < 0.4) {
+      x2.push_back(x2[std::uniform_int_distribution<int>(0, static_cast<int>(x2.size()) - 1)(rng)]);
+      continue;
+    }
+    // A point of the line l = F x1 inside the image: the line's foot from a random point.
+    const Eigen::Vector2d& p1 = x1[pick1(rng)];
+    const Eigen::Vector3d l = F * p1.homogeneous();
+    const Eigen::Vector2d normal = l.head<2>().normalized();
+    const Eigen::Vector2d random(800.0 * u(rng), 600.0 * u(rng));
+    const Eigen::Vector2d foot =
+        random - (l.dot(random.homogeneous()) / l.head<2>().norm()) * normal;
+    if (kind < 0.85) {
+      x2.push_back(foot + (6.0 * u(rng) - 3.0) * normal);
+      continue;
+    }
+    double inside = 0.0, outside = 10.0;  // Offsets along the normal.
+    if (!EpipolarCandidate(F, p1, foot, 1.5)) continue;
+    for (int step = 0; step < 200; ++step) {
+      const double middle = 0.5 * (inside + outside);
+      if (middle == inside || middle == outside) break;
+      (EpipolarCandidate(F, p1, foot + middle * normal, 1.5) ? inside : outside) = middle;
+    }
+    x2.push_back(foot + inside * normal);
+    x2.push_back(foot + outside * normal);
+  }
+  x2.resize(n2);
+  return x2;
+}
+
+TEST(GuidedMatchDescriptors, EqualsBruteForceExactlyNearTheEpipolarBoundWithTies) {
+  struct Case {
+    int n1, n2;
+    int bases;      // Fewer bases: more exact duplicates, more ties.
+    int max_steps;  // Steps of 1/32 away from the base.
+  };
+  const Case cases[] = {{1, 1, 1, 0},   {1, 40, 3, 1},    {40, 1, 3, 1},      {7, 300, 5, 1},
+                        {300, 7, 5, 1}, {333, 517, 8, 1}, {1201, 999, 20, 2}, {2500, 2047, 40, 2}};
+  // Camera 2 = R X + t: sideways (epipoles far outside the image), forward (inside), oblique.
+  struct Motion {
+    double angle;
+    Eigen::Vector3d axis, t;
+  };
+  const Motion motions[] = {{0.15, {0.1, 1.0, 0.0}, {-1.0, 0.1, 0.05}},
+                            {0.05, {1.0, 0.2, 0.1}, {0.1, -0.05, -1.0}},
+                            {0.3, {0.3, -1.0, 0.5}, {-0.6, 0.4, 0.5}}};
+  Eigen::Matrix3d K;
+  K << 800, 0, 400, 0, 800, 300, 0, 0, 1;
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  ReferenceTies ties;
+  int candidates = 0, matched = 0;
+  for (const Case& c : cases) {
+    for (const Motion& motion : motions) {
+      const Eigen::Matrix3d R = Eigen::AngleAxisd(motion.angle, motion.axis.normalized()).matrix();
+      Eigen::Matrix3d tx;
+      tx << 0, -motion.t.z(), motion.t.y(), motion.t.z(), 0, -motion.t.x(), -motion.t.y(),
+          motion.t.x(), 0;
+      const Eigen::Matrix3d F = K.inverse().transpose() * tx * R * K.inverse();
+      std::vector<Eigen::Vector2d> x1;
+      for (int i = 0; i < c.n1; ++i) x1.emplace_back(800.0 * u(rng), 600.0 * u(rng));
+      std::vector<Eigen::Vector2d> x2 = GuidedKeypoints2(F, x1, c.n2, rng);
+      if (c.n1 > 100 && c.n2 > 100) {  // Non-finite keypoints: NaN (never a candidate), infinity.
+        const double inf = std::numeric_limits<double>::infinity();
+        x1[3] = {std::nan(""), 10.0};
+        x1[5] = {inf, 10.0};
+        x2[4] = {10.0, std::nan("")};
+        x2[6] = {-inf, 20.0};
+      }
+      const DescriptorMatrix bases = GridBases(c.bases, rng);
+      const DescriptorMatrix a = GridRows(bases, c.n1, c.max_steps, rng);
+      const DescriptorMatrix b = GridRows(bases, c.n2, c.max_steps, rng);
+      const std::vector<float> distances = GuidedDistances(a, b, x1, x2, F, 1.5, &candidates);
+      for (const bool cross_check : {true, false}) {
+        for (const double max_ratio : {0.8, 1.0}) {
+          SCOPED_TRACE(testing::Message()
+                       << c.n1 << " x " << c.n2 << ", t " << motion.t.transpose()
+                       << ", cross_check " << cross_check << ", max_ratio " << max_ratio);
+          GuidedMatchingOptions options;
+          options.cross_check = cross_check;
+          options.max_ratio = max_ratio;
+          const auto slow =
+              ReferenceMatch(distances, c.n1, c.n2, AsMatchingOptions(options), &ties);
+          EXPECT_EQ(Guided(a, b, x1, x2, F, options), slow);
+          matched += static_cast<int>(slow.size());
+        }
+      }
+    }
+  }
+  // The data exercises the rules: many candidates and matches, both tie rules.
+  EXPECT_GT(candidates, 100000);
+  EXPECT_GT(matched, 1000);
+  EXPECT_GT(ties.repeated_minima, 100);
+  EXPECT_GT(ties.column_ties, 100);
+}
+
+// F = [0 0 0; 0 0 -3; 0 4 0]: e = 4 y1 - 3 y2, |line2_xy|² = 9, |(Fᵀ x2)_xy|² = 16, all exact for
+// coordinates on a grid of 1/2, so that many pairs have a Sampson distance of exactly 1.5 px
+// (|e| = 7.5): candidates (<=), and the test's comparison is checked at equality.
+TEST(GuidedMatchDescriptors, SampsonDistanceExactlyAtTheBoundIsACandidate) {
+  Eigen::Matrix3d F;
+  F << 0, 0, 0, 0, 0, -3, 0, 4, 0;
+  std::mt19937 rng(29);
+  std::uniform_int_distribution<int> half_pixels(0, 120);
+  std::vector<Eigen::Vector2d> x1, x2;
+  for (int i = 0; i < 301; ++i) x1.emplace_back(0.5 * half_pixels(rng), 0.5 * half_pixels(rng));
+  for (int j = 0; j < 397; ++j) x2.emplace_back(0.5 * half_pixels(rng), 0.5 * half_pixels(rng));
+  int on_bound = 0;
+  for (const Eigen::Vector2d& p : x1) {
+    for (const Eigen::Vector2d& q : x2) on_bound += std::abs(4 * p.y() - 3 * q.y()) == 7.5;
+  }
+  ASSERT_GT(on_bound, 300);
+  const DescriptorMatrix bases = GridBases(30, rng);
+  const DescriptorMatrix a = GridRows(bases, 301, 1, rng), b = GridRows(bases, 397, 1, rng);
+  int candidates = 0;
+  const std::vector<float> distances = GuidedDistances(a, b, x1, x2, F, 1.5, &candidates);
+  ReferenceTies ties;
+  for (const bool cross_check : {true, false}) {
+    SCOPED_TRACE(testing::Message() << "cross_check " << cross_check);
+    GuidedMatchingOptions options;
+    options.cross_check = cross_check;
+    EXPECT_EQ(Guided(a, b, x1, x2, F, options),
+              ReferenceMatch(distances, 301, 397, AsMatchingOptions(options), &ties));
   }
 }
 
