@@ -213,15 +213,17 @@ std::vector<std::pair<int, int>> ReferenceMatch(
   return matches;
 }
 
+// A size of the brute-force comparisons on GridRows descriptors.
+struct GridCase {
+  int n1, n2;
+  int bases;      // Fewer bases: more exact duplicates, more ties.
+  int max_steps;  // Steps of 1/32 away from the base.
+};
+
 TEST(MatchDescriptors, EqualsBruteForceExactlyWithTiesOddSizesAndSeveralBlocks) {
-  struct Case {
-    int n1, n2;
-    int bases;      // Fewer bases: more exact duplicates, more ties.
-    int max_steps;  // Steps of 1/32 away from the base.
-  };
   // Tiny sizes, and sizes on and off the 32 columns MatchDescriptors screens at a time and the
   // 1024 rows of one matrix-product block.
-  const Case cases[] = {
+  const GridCase cases[] = {
       {1, 1, 1, 0},        {1, 1, 1, 2},      {1, 300, 20, 2},      {300, 1, 20, 2},
       {1, 31, 2, 1},       {31, 1, 2, 1},     {5, 32, 3, 1},        {17, 33, 4, 1},
       {40, 200, 1, 2},     {70, 65, 5, 2},    {1024, 64, 30, 2},    {1025, 100, 40, 2},
@@ -229,7 +231,7 @@ TEST(MatchDescriptors, EqualsBruteForceExactlyWithTiesOddSizesAndSeveralBlocks) 
   };
   std::mt19937 rng(21);
   ReferenceTies ties;
-  for (const Case& c : cases) {
+  for (const GridCase& c : cases) {
     const DescriptorMatrix bases = GridBases(c.bases, rng);
     const DescriptorMatrix a = GridRows(bases, c.n1, c.max_steps, rng);
     const DescriptorMatrix b = GridRows(bases, c.n2, c.max_steps, rng);
@@ -486,13 +488,9 @@ std::vector<Eigen::Vector2d> GuidedKeypoints2(const Eigen::Matrix3d& F,
 }
 
 TEST(GuidedMatchDescriptors, EqualsBruteForceExactlyNearTheEpipolarBoundWithTies) {
-  struct Case {
-    int n1, n2;
-    int bases;      // Fewer bases: more exact duplicates, more ties.
-    int max_steps;  // Steps of 1/32 away from the base.
-  };
-  const Case cases[] = {{1, 1, 1, 0},   {1, 40, 3, 1},    {40, 1, 3, 1},      {7, 300, 5, 1},
-                        {300, 7, 5, 1}, {333, 517, 8, 1}, {1201, 999, 20, 2}, {2500, 2047, 40, 2}};
+  const GridCase cases[] = {{1, 1, 1, 0},       {1, 40, 3, 1},      {40, 1, 3, 1},
+                            {7, 300, 5, 1},     {300, 7, 5, 1},     {333, 517, 8, 1},
+                            {1201, 999, 20, 2}, {2500, 2047, 40, 2}};
   // Camera 2 = R X + t: sideways (epipoles far outside the image), forward (inside), oblique.
   struct Motion {
     double angle;
@@ -507,7 +505,7 @@ TEST(GuidedMatchDescriptors, EqualsBruteForceExactlyNearTheEpipolarBoundWithTies
   std::uniform_real_distribution<double> u(0.0, 1.0);
   ReferenceTies ties;
   int candidates = 0, matched = 0;
-  for (const Case& c : cases) {
+  for (const GridCase& c : cases) {
     for (const Motion& motion : motions) {
       const Eigen::Matrix3d R = Eigen::AngleAxisd(motion.angle, motion.axis.normalized()).matrix();
       Eigen::Matrix3d tx;
