@@ -83,6 +83,7 @@ class Mapper {
       point_track_.clear();
       Reconstruction model;
       final_stddev_.clear();
+      contradicted_.clear();
       if (!Initialize(&model)) break;
       Grow(&model);
       Finish(&model);
@@ -92,7 +93,8 @@ class Mapper {
              std::to_string(model.images.size()) + " photos, " +
              std::to_string(model.points.size()) + " points, mean reprojection error " +
              std::to_string(model.MeanReprojectionError()) + " px");
-        grown.push_back({std::move(model), final_stddev_, init_image1_, init_image2_});
+        grown.push_back(
+            {std::move(model), final_stddev_, init_image1_, init_image2_, contradicted_});
       }
     }
     if (options_.merge_models) MergeAll(&grown);
@@ -146,8 +148,9 @@ class Mapper {
     std::map<int, IntrinsicsStddev> stddev;  // From its last final adjustment.
     int init_image1 = kInvalidId;            // The gauge of its adjustments.
     int init_image2 = kInvalidId;
-    bool merged = false;  // Another model was merged into it since its final adjustment.
-    int id = 0;           // For MergeAll: which model, and how often it has grown by merging.
+    std::set<int> contradicted;  // Photos it removed (RemoveContradictedPhoto).
+    bool merged = false;         // Another model was merged into it since its final adjustment.
+    int id = 0;  // For MergeAll: which model, and how often it has grown by merging.
     int version = 0;
   };
 
@@ -161,6 +164,7 @@ class Mapper {
   // seed among the photos left is tried, up to `max_seeds` seeds.
   Reconstruction RunTrial(int max_images, int max_seeds) {
     max_images_ = static_cast<std::size_t>(max_images);
+    contradicted_.clear();
     Reconstruction model;
     for (int seed = 0; seed < max_seeds; ++seed) {
       track_point_.clear();
@@ -249,6 +253,7 @@ class Mapper {
             continue;
           }
           ++merges;
+          into.contradicted.insert(from.contradicted.begin(), from.contradicted.end());
           into.merged = true;
           ++into.version;
           grown->erase(grown->begin() + static_cast<std::ptrdiff_t>(j));
@@ -269,6 +274,7 @@ class Mapper {
     Reconstruction& model = g->model;
     init_image1_ = g->init_image1;
     init_image2_ = g->init_image2;
+    contradicted_ = g->contradicted;
     AdoptTrackPoints(model);
     if (g->merged) {
       Finish(&model);
@@ -277,6 +283,7 @@ class Mapper {
     const std::size_t before = model.images.size();
     last_global_size_ = before;
     Grow(&model);
+    g->contradicted = contradicted_;
     if (model.images.size() == before) return;
     Note("re-registration with the final intrinsics: " +
          std::to_string(model.images.size() - before) + " photo(s) joined a model of " +
@@ -287,6 +294,7 @@ class Mapper {
     for (const auto& [id, image] : model.images) used_.insert(id);
     Finish(&model);
     g->stddev = final_stddev_;
+    g->contradicted = contradicted_;
   }
 
   // The track <-> point maps of `model` (built by another pass or merged): each point stands
@@ -521,7 +529,7 @@ class Mapper {
         // weak link (on templeSparseRing, a 4-photo arc seeded with a poor focal guess) is
         // then absorbed by a later model that reaches its photos from the other side of the
         // ring, and ResolveSharedPhotos drops it. Seeds (Initialize) stay unused photos.
-        if (model->images.count(id) || failed.count(id)) continue;
+        if (model->images.count(id) || failed.count(id) || contradicted_.count(id)) continue;
         int visible = 0;
         for (int track : track_of_.at(id)) visible += track >= 0 && track_point_.count(track);
         if (visible >= options_.min_registration_points) candidates.emplace_back(visible, id);
@@ -653,7 +661,7 @@ class Mapper {
       const bool in2 = model->images.count(pair.image2) > 0;
       if (in1 == in2) continue;
       const int fresh = in1 ? pair.image2 : pair.image1;
-      if (!failed->count(fresh)) links[fresh].push_back(&pair);
+      if (!failed->count(fresh) && !contradicted_.count(fresh)) links[fresh].push_back(&pair);
     }
     std::vector<std::pair<std::size_t, int>> ranked;  // (matches, photo)
     for (const auto& [id, pairs] : links) {
@@ -991,7 +999,141 @@ class Mapper {
     return bar;
   }
 
+  // The final adjustments (FinishOnce), then the check against the verified pairs: while a
+  // photo's pose contradicts them, it leaves the model and the model is finished again.
   void Finish(Reconstruction* model) {
+    FinishOnce(model);
+    while (model->images.size() > 2 && RemoveContradictedPhoto(model)) {
+      AdoptTrackPoints(*model);
+      FinishOnce(model);
+    }
+  }
+
+  // A verified pair of two registered photos whose own relative pose contradicts the one the
+  // model gives them (IncrementalMapperOptions::contradiction_min_rotation_deg).
+  struct Contradiction {
+    int image1 = kInvalidId;
+    int image2 = kInvalidId;
+    int matches = 0;
+    int model_explains = 0;  // Matches within the reprojection threshold of the model's poses.
+    int pair_explains = 0;   // Inliers of the pair's own relative pose.
+    double rotation_deg = 0.0;
+  };
+
+  // Also adds to `support` (image id -> matches) the matches of each photo's other checked
+  // pairs that the model explains.
+  std::vector<Contradiction> FindContradictions(const Reconstruction& model,
+                                                std::map<int, int>* support) {
+    std::vector<Contradiction> found;
+    if (!(options_.contradiction_min_rotation_deg > 0)) return found;
+    for (const MapperPair& pair : input_.pairs) {
+      if (!pair.epipolar ||
+          static_cast<int>(pair.matches.size()) < options_.contradiction_min_matches) {
+        continue;
+      }
+      auto it1 = model.images.find(pair.image1);
+      auto it2 = model.images.find(pair.image2);
+      if (it1 == model.images.end() || it2 == model.images.end()) continue;
+      const Camera& camera1 = model.cameras.at(it1->second.camera_id);
+      const Camera& camera2 = model.cameras.at(it2->second.camera_id);
+      std::vector<Eigen::Vector2d> x1, x2;
+      for (const FeatureMatch& m : pair.matches) {
+        const auto a = Normalized(camera1, it1->second.keypoints[m.index1]);
+        const auto b = Normalized(camera2, it2->second.keypoints[m.index2]);
+        if (!a || !b) continue;
+        x1.push_back(*a);
+        x2.push_back(*b);
+      }
+      // A match the model's relative pose (image 2 from image 1) explains lies within the
+      // reprojection threshold of its epipolar geometry (Sampson distance).
+      const Rigid3d relative = it2->second.cam_from_world * it1->second.cam_from_world.Inverse();
+      const double focal = 0.5 * (camera1.focal + camera2.focal);
+      const double threshold = options_.max_reprojection_error_px / focal;
+      int explained = 0;
+      for (const double d : EpipolarDistances(relative, x1, x2)) explained += d < threshold;
+      // Most pairs agree with their model (over 90 % of the matches): only the others cost a
+      // relative pose estimate.
+      const auto supports = [&] {
+        (*support)[pair.image1] += explained;
+        (*support)[pair.image2] += explained;
+      };
+      if (explained >= 0.9 * static_cast<double>(x1.size())) {
+        supports();
+        continue;
+      }
+      const std::optional<PairPose> own = EstimateRelativePose(x1, x2, focal, options_.relative);
+      const double rotation_deg =
+          own ? Eigen::AngleAxisd(own->new_from_registered.rotation * relative.rotation.inverse())
+                        .angle() *
+                    180.0 / M_PI
+              : 0.0;
+      LOG_DEBUG << "sfm: check " << input_.images.at(pair.image1).name << " - "
+                << input_.images.at(pair.image2).name << ": the model explains " << explained
+                << " of " << x1.size() << " matches; the pair's own pose: "
+                << (own ? std::to_string(own->num_inliers) + " inliers, parallax " +
+                              std::to_string(own->median_parallax_deg) + " deg, rotation " +
+                              std::to_string(rotation_deg) + " deg off"
+                        : std::string("none"));
+      if (!own ||
+          own->num_inliers <
+              options_.contradiction_min_pair_share * static_cast<double>(x1.size()) ||
+          own->median_parallax_deg < options_.contradiction_min_parallax_deg ||
+          rotation_deg <= options_.contradiction_min_rotation_deg) {
+        supports();
+        continue;
+      }
+      found.push_back({pair.image1, pair.image2, static_cast<int>(x1.size()), explained,
+                       own->num_inliers, rotation_deg});
+    }
+    return found;
+  }
+
+  // Removes the photo of `model` in most contradictions; on a tie the one whose other checked
+  // pairs the model explains least (a photo placed wrongly by PnP often has only homography
+  // pairs besides), then the later registered; never one of the initial pair, which fixes the
+  // gauge. False when there is none to remove.
+  bool RemoveContradictedPhoto(Reconstruction* model) {
+    std::map<int, int> support;
+    const std::vector<Contradiction> contradictions = FindContradictions(*model, &support);
+    std::map<int, int> count;
+    for (const Contradiction& c : contradictions) {
+      ++count[c.image1];
+      ++count[c.image2];
+    }
+    const auto rank = [&](int id) {
+      return std::make_tuple(count.at(id), -support[id], registration_order_[id]);
+    };
+    int worst = kInvalidId;
+    for (const auto& [id, n] : count) {
+      if (id == init_image1_ || id == init_image2_) continue;
+      if (worst == kInvalidId || rank(id) > rank(worst)) worst = id;
+    }
+    if (worst == kInvalidId) {
+      if (!contradictions.empty()) {
+        LOG_WARNING << "sfm: the initial pair's photos contradict " << contradictions.size()
+                    << " verified pair(s); the model keeps them";
+      }
+      return false;
+    }
+    std::ostringstream line;
+    line << std::fixed << std::setprecision(1) << "removed " << input_.images.at(worst).name
+         << " from the model of " << model->images.size()
+         << " photos: its pose contradicts the verified pair(s)";
+    for (const Contradiction& c : contradictions) {
+      if (c.image1 != worst && c.image2 != worst) continue;
+      line << " " << input_.images.at(c.image1 == worst ? c.image2 : c.image1).name << " ("
+           << c.matches << " matches: the model's poses explain " << c.model_explains
+           << ", the pair's own relative pose " << c.pair_explains << ", rotations "
+           << c.rotation_deg << " deg apart)";
+    }
+    Note(line.str());
+    RemoveImage(model, worst);
+    contradicted_.insert(worst);
+    if (summary_ != nullptr) ++summary_->num_contradicted;
+    return true;
+  }
+
+  void FinishOnce(Reconstruction* model) {
     // Tracks that could not be triangulated earlier may be now, with all photos in place.
     for (const auto& [id, image] : model->images) TriangulateImage(model, id);
     GlobalAdjust(model, /*final=*/false);
@@ -1045,6 +1187,7 @@ class Mapper {
   void AddImage(Reconstruction* model, int image_id, const Rigid3d& pose) {
     const MapperImage& source = input_.images.at(image_id);
     RegisteredImage& image = model->images[image_id];
+    registration_order_[image_id] = ++registrations_;
     image.image_id = image_id;
     image.camera_id = source.camera_id;
     image.name = source.name;
@@ -1192,10 +1335,15 @@ class Mapper {
   const CancelToken& cancel_;
   MapperSummary* summary_;
 
-  std::map<int, std::vector<int>> track_of_;            // image id -> track per keypoint (-1: none)
-  std::map<int, int> track_point_;                      // track -> point id in the current model
-  std::map<int, int> point_track_;                      // point id -> track
-  std::set<int> used_;                                  // Photos registered in an earlier model.
+  std::map<int, std::vector<int>> track_of_;  // image id -> track per keypoint (-1: none)
+  std::map<int, int> track_point_;            // track -> point id in the current model
+  std::map<int, int> point_track_;            // point id -> track
+  std::set<int> used_;                        // Photos registered in an earlier model.
+  // Photos the current model removed because their pose contradicted its verified pairs
+  // (RemoveContradictedPhoto): Grow does not register them in it again.
+  std::set<int> contradicted_;
+  std::map<int, int> registration_order_;  // Image id -> when AddImage last placed it.
+  int registrations_ = 0;
   std::set<std::tuple<int, int, bool>> tried_initial_;  // (image1, image2, weak bar)
   std::map<int, Camera> cameras_;  // Initial intrinsics (input_.cameras unless replaced).
   // The intrinsics' standard deviations from the current model's final adjustment.
@@ -1419,6 +1567,16 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
     m << "max_principal_point_shift must be in (0, 0.5], got " << max_principal_point_shift;
   } else if (!(max_principal_point_stddev > 0)) {
     m << "max_principal_point_stddev must be positive, got " << max_principal_point_stddev;
+  } else if (!(contradiction_min_rotation_deg >= 0 && contradiction_min_rotation_deg < 180)) {
+    m << "contradiction_min_rotation_deg must be 0 (off) or in (0, 180), got "
+      << contradiction_min_rotation_deg;
+  } else if (contradiction_min_matches < 8) {
+    m << "contradiction_min_matches must be at least 8, got " << contradiction_min_matches;
+  } else if (!(contradiction_min_pair_share > 0 && contradiction_min_pair_share <= 1)) {
+    m << "contradiction_min_pair_share must be in (0, 1], got " << contradiction_min_pair_share;
+  } else if (!(contradiction_min_parallax_deg >= 0 && contradiction_min_parallax_deg < 90)) {
+    m << "contradiction_min_parallax_deg must be in [0, 90), got "
+      << contradiction_min_parallax_deg;
   } else if (std::string relative_error; !relative.Check(&relative_error)) {
     m << "relative: " << relative_error;
   } else if (std::string merge_error; !merge.Check(&merge_error)) {

@@ -198,6 +198,25 @@ struct IncrementalMapperOptions {
   // Then each model (after its global adjustment) tries again to register the photos left
   // out, with its final intrinsics; when any joins, the final adjustment runs again.
   bool reregister = true;
+  // Every finished model (after its final adjustment, also after a merge or re-registration)
+  // is checked against the two-view geometry of its photos' verified pairs: a pair whose own
+  // relative pose (EstimateRelativePose at the model's focal) explains at least
+  // `contradiction_min_pair_share` of its matches with a median parallax of at least
+  // `contradiction_min_parallax_deg`, while the model's two poses explain fewer than 90 %
+  // and put their relative rotation more than `contradiction_min_rotation_deg` away from the
+  // pair's, contradicts the model: one of its photos was placed wrongly (PnP on a few points of
+  // one plane, or on points of a poor two-view start, can land 50-130 deg off with a low
+  // reprojection error). The photo in most contradictions (on a tie the later registered; never
+  // one of the initial pair) leaves the model, which is adjusted again and checked again; the
+  // photo may start or join another model. Only pairs classified epipolar (F) with at least
+  // `contradiction_min_matches` matches take part: a homography's matches do not fix a
+  // relative pose. Logged "removed X from the model: its pose contradicts ...". Off with
+  // contradiction_min_rotation_deg = 0. On real photos of small objects (templeSparseRing,
+  // kermit) true pairs differ from their model by up to 7 deg; fountain-P11 by 0.2 deg.
+  double contradiction_min_rotation_deg = 15.0;  // 0 or (0, 180)
+  int contradiction_min_matches = 50;            // [8, ...]
+  double contradiction_min_pair_share = 0.8;     // (0, 1]
+  double contradiction_min_parallax_deg = 5.0;   // [0, 90)
   // Models with fewer photos are dropped. [2, ...]
   int min_model_images = 2;
   // Threads Ceres uses in bundle adjustment; <= 0 means all hardware threads. One by default,
@@ -225,6 +244,9 @@ struct MapperSummary {
   // by the re-registration after the global adjustment.
   int num_merges = 0;
   int num_reregistered = 0;
+  // Photos removed from a model whose verified pairs their pose contradicted
+  // (IncrementalMapperOptions::contradiction_min_rotation_deg).
+  int num_contradicted = 0;
   std::vector<std::string> log;  // One line per notable event (initial pairs, failures).
   // Where the mapping time went (seconds; the focal search's trial models are not counted):
   // PnP registration tries, triangulation, local and global bundle adjustments (the global

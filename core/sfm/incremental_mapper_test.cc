@@ -8,6 +8,8 @@
 
 #include <cstdint>
 #include <iostream>
+#include <limits>
+#include <map>
 #include <random>
 #include <set>
 
@@ -774,6 +776,120 @@ TEST(ReconstructIncrementally, FinalOutlierFilterLeavesGaussianNoiseAlone) {
   std::cout << line << "\n";
   // 0.3 px noise: a bar of about 1.5 px, which Gaussian noise does not reach.
   EXPECT_NE(line.find(": 0 of "), std::string::npos) << line;
+}
+
+// A photo whose tracks put it in a false place while one of its verified pairs says otherwise:
+// on a ring of 10 photos, photo 5's matches with photo 6 are the projections of the points
+// photos 6 and 7 see through a false pose (photo 5's, orbited 50 deg about the scene towards
+// photo 6), and its matches with photo 4 (every fourth point they share) are true. PnP places
+// it by the larger, self-consistent false set; the model then explains few of the pair with
+// photo 4, whose own relative pose explains them all, 50 deg away: the check removes photo 5.
+SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_deg) {
+  SyntheticSceneOptions scene_options;
+  scene_options.num_cameras = 10;
+  scene_options.num_points = 1500;
+  scene_options.focal = 800;
+  scene_options.width = 1024;
+  scene_options.height = 768;
+  scene_options.pixel_noise_stddev = 0.5;
+  scene_options.seed = 41;
+  SceneRun run;
+  run.scene = SynthesizeScene(scene_options);
+  const SyntheticScene& scene = run.scene;
+  constexpr int kMisplaced = 5;
+  MapperInput input = InputFromScene(scene, scene_options.focal);
+  // The false pose: photo 5 orbited 50 deg about the vertical through the origin, the way that
+  // brings it nearer photo 6.
+  const Rigid3d& truth = scene.images[kMisplaced].cam_from_world;
+  Rigid3d misplaced;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const double sign : {-1.0, 1.0}) {
+    const Rigid3d orbit(
+        Eigen::Quaterniond(Eigen::AngleAxisd(sign * 50.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ())),
+        Eigen::Vector3d::Zero());
+    const Rigid3d candidate = truth * orbit;
+    const double distance =
+        (candidate.CenterInWorld() - scene.images[kMisplaced + 1].cam_from_world.CenterInWorld())
+            .norm();
+    if (distance < nearest) {
+      nearest = distance;
+      misplaced = candidate;
+    }
+  }
+  // Photo 5's keypoints: its true observations, then the false ones.
+  MapperImage& image = input.images.at(kMisplaced);
+  const Camera& camera = scene.images[kMisplaced].camera;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, scene_options.pixel_noise_stddev);
+  std::map<int, int> observation_of_point;  // In photo 7.
+  for (int k = 0; k < static_cast<int>(scene.images[kMisplaced + 2].observations.size()); ++k) {
+    const SyntheticObservation& o = scene.images[kMisplaced + 2].observations[k];
+    if (!o.is_outlier) observation_of_point[o.point_index] = k;
+  }
+  std::vector<FeatureMatch> false_matches;  // Photo 5 (false keypoints) with photo 6.
+  for (int k = 0; k < static_cast<int>(scene.images[kMisplaced + 1].observations.size()); ++k) {
+    const SyntheticObservation& o = scene.images[kMisplaced + 1].observations[k];
+    if (o.is_outlier || !observation_of_point.count(o.point_index)) continue;
+    const Eigen::Vector3d in_camera = misplaced * scene.points3D[o.point_index];
+    if (in_camera.z() <= 0) continue;
+    const auto pixel = camera.ImgFromCam(in_camera);
+    if (!pixel || pixel->x() < 0 || pixel->y() < 0 || pixel->x() > scene_options.width - 1 ||
+        pixel->y() > scene_options.height - 1) {
+      continue;
+    }
+    image.keypoints.push_back(*pixel + Eigen::Vector2d(noise(rng), noise(rng)));
+    false_matches.push_back({static_cast<int>(image.keypoints.size()) - 1, k});
+  }
+  std::vector<MapperPair> pairs;
+  std::vector<PairMatches> pair_matches;
+  for (MapperPair& pair : input.pairs) {
+    if (pair.image1 == kMisplaced || pair.image2 == kMisplaced) {
+      if (pair.image1 == kMisplaced - 1) {
+        std::vector<FeatureMatch> kept;
+        for (std::size_t m = 0; m < pair.matches.size(); m += 4) kept.push_back(pair.matches[m]);
+        pair.matches = kept;
+      } else if (pair.image2 == kMisplaced + 1) {
+        pair.matches = false_matches;
+      } else {
+        continue;
+      }
+      pair.num_inliers_F = static_cast<int>(pair.matches.size());
+    }
+    pair_matches.push_back({pair.image1, pair.image2, pair.matches});
+    pairs.push_back(std::move(pair));
+  }
+  input.pairs = std::move(pairs);
+  input.tracks = BuildTracks(pair_matches);
+  IncrementalMapperOptions options;
+  options.contradiction_min_rotation_deg = contradiction_min_rotation_deg;
+  Progress progress;
+  run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
+  return run;
+}
+
+TEST(ReconstructIncrementally, APhotoWhosePoseContradictsAVerifiedPairIsRemoved) {
+  const SceneRun unchecked = ReconstructRingWithAMisplacedPhoto(/*off=*/0.0);
+  ASSERT_FALSE(unchecked.models.empty());
+  ASSERT_TRUE(unchecked.models[0].images.count(5)) << "the scene places photo 5 wrongly";
+  const Errors misplaced = Compare(unchecked.models[0], unchecked.scene);
+  std::cout << "unchecked: " << unchecked.models[0].images.size() << " photos, max rotation "
+            << misplaced.max_rotation_deg << " deg\n";
+  EXPECT_GT(misplaced.max_rotation_deg, 20.0);
+
+  const SceneRun checked = ReconstructRingWithAMisplacedPhoto(15.0);
+  ASSERT_FALSE(checked.models.empty());
+  EXPECT_EQ(checked.summary.num_contradicted, 1);
+  EXPECT_FALSE(checked.models[0].images.count(5));
+  EXPECT_EQ(checked.models[0].images.size(), 9u);
+  const Errors errors = Compare(checked.models[0], checked.scene);
+  std::cout << "checked: " << checked.models[0].images.size() << " photos, max rotation "
+            << errors.max_rotation_deg << " deg\n";
+  EXPECT_LT(errors.max_rotation_deg, 0.3);
+  bool logged = false;
+  for (const std::string& line : checked.summary.log) {
+    logged = logged || line.starts_with("removed view5 from the model");
+  }
+  EXPECT_TRUE(logged);
 }
 
 TEST(ReconstructIncrementally, Cancellation) {

@@ -90,6 +90,20 @@ Eigen::Vector2d Depths(const Eigen::Matrix3d& r,
 
 }  // namespace
 
+std::vector<double> EpipolarDistances(const Rigid3d& second_from_first,
+                                      const std::vector<Eigen::Vector2d>& first,
+                                      const std::vector<Eigen::Vector2d>& second) {
+  std::vector<Eigen::Vector3d> x1, x2;
+  for (const Eigen::Vector2d& x : first) x1.push_back(x.homogeneous());
+  for (const Eigen::Vector2d& x : second) x2.push_back(x.homogeneous());
+  const Eigen::VectorXd residuals =
+      SampsonResiduals(second_from_first.rotation.toRotationMatrix(),
+                       second_from_first.translation.normalized(), x1, x2);
+  std::vector<double> distances(residuals.size());
+  for (Eigen::Index i = 0; i < residuals.size(); ++i) distances[i] = std::abs(residuals[i]);
+  return distances;
+}
+
 void RefineRelativePose(const std::vector<Eigen::Vector3d>& x1,
                         const std::vector<Eigen::Vector3d>& x2,
                         double scale,

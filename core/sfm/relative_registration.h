@@ -80,6 +80,12 @@ std::optional<PairPose> EstimateRelativePose(const std::vector<Eigen::Vector2d>&
                                              double focal_px,
                                              const RelativeRegistrationOptions& options);
 
+// The Sampson distances (normalised units) of normalised correspondences first <-> second
+// under the essential matrix of `second_from_first` (only its translation's direction counts).
+std::vector<double> EpipolarDistances(const Rigid3d& second_from_first,
+                                      const std::vector<Eigen::Vector2d>& first,
+                                      const std::vector<Eigen::Vector2d>& second);
+
 // Levenberg-Marquardt on the Sampson distances of correspondences x1 <-> x2 (homogeneous,
 // normalised) over the 5 degrees of freedom of (R, t / |t|), x2ᵀ [t]x R x1 = 0, with a Cauchy
 // loss at `scale` (normalised units; EstimateRelativePose passes its inlier threshold) or, for

@@ -376,6 +376,7 @@ StageResult SparseStage::Run(StageContext& context) const {
       {"registered_by_relative_pose", summary.num_relative_registrations},
       {"models_merged", summary.num_merges},
       {"registered_again", summary.num_reregistered},
+      {"removed_as_contradicted", summary.num_contradicted},
       {"points", best.points.size()},
       {"mean_reprojection_error_px", best.MeanReprojectionError()},
       {"seconds",
