@@ -785,13 +785,9 @@ TEST(ReconstructIncrementally, FinalOutlierFilterLeavesGaussianNoiseAlone) {
 // it by the larger, self-consistent false set; the model then explains few of the pair with
 // photo 4, whose own relative pose explains them all, 50 deg away: the check removes photo 5.
 SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_deg) {
-  SyntheticSceneOptions scene_options;
-  scene_options.num_cameras = 10;
-  scene_options.num_points = 1500;
-  scene_options.focal = 800;
-  scene_options.width = 1024;
-  scene_options.height = 768;
-  scene_options.pixel_noise_stddev = 0.5;
+  SyntheticSceneOptions scene_options = NoisyRingOptions();
+  scene_options.k1 = 0.0;
+  scene_options.outlier_fraction = 0.0;
   scene_options.seed = 41;
   SceneRun run;
   run.scene = SynthesizeScene(scene_options);
