@@ -106,6 +106,42 @@ TEST(SparsePipeline, RecoversRenderedCamerasWithoutExif) {
   std::printf("focal %.3f +- %.3f px (truth %.1f)\n", recovered.focal, focal_stddev, kFocal);
   EXPECT_GT(focal_stddev, 0.0);
   EXPECT_LT(focal_stddev, 0.005 * kFocal);
+  EXPECT_FALSE(record.contains("final_focal_warning")) << "8 photos estimate their focal";
+  fs::remove_all(root);
+}
+
+// Two photos without EXIF cannot estimate their focal length: the model keeps the guess, and
+// the calibration record (which the job's summary carries) says so.
+TEST(SparsePipeline, TwoPhotosWithoutExifSayTheirFocalIsAGuess) {
+  const fs::path root =
+      fs::temp_directory_path() / ("reconduit_sparse_two_photos_test_" + std::to_string(getpid()));
+  fs::remove_all(root);
+  fs::create_directories(root / "images");
+  const TexturedScene scene = MakeBoxRoomScene(3);
+  const Camera camera = Camera::FromFocal(kWidth, kHeight, kFocal);
+  const std::vector<Rigid3d> truth = Cameras(8);
+  Workspace workspace;
+  for (std::size_t i = 3; i < 5; ++i) {
+    const RenderedView view = RenderScene(scene, camera, truth[i]);
+    const fs::path path = root / "images" / ("view" + std::to_string(i) + ".jpg");
+    ASSERT_TRUE(cv::imwrite(path.string(), view.image, {cv::IMWRITE_JPEG_QUALITY, 95}));
+    workspace.images.push_back({path, path.filename().string()});
+  }
+  workspace.work_dir = root / "work";
+  workspace.output_dir = root / "output";
+  auto stages = CreatePipelineStages("sparse");
+  ASSERT_TRUE(stages.ok()) << stages.status();
+  const PipelineResult result = RunPipeline(*stages, workspace, PipelineOptions(), CancelToken());
+  ASSERT_EQ(result.status, StageStatus::kSuccess) << result.failed_stage << ": " << result.message;
+  std::ifstream calibration_file(workspace.StageDir("sparse") / "calibration.json");
+  const nlohmann::json calibration = nlohmann::json::parse(calibration_file);
+  const nlohmann::json& record = calibration.at("cameras").at(0);
+  EXPECT_EQ(record.at("initial_focal_source"), "default");
+  ASSERT_TRUE(record.contains("final_focal_warning"));
+  const std::string warning = record.at("final_focal_warning").get<std::string>();
+  std::printf("focal %.1f px (truth %.1f): %s\n", record.at("final_focal").get<double>(), kFocal,
+              warning.c_str());
+  EXPECT_NE(warning.find("a guess: the model has 2 photo(s)"), std::string::npos) << warning;
   fs::remove_all(root);
 }
 

@@ -1020,6 +1020,17 @@ class Mapper {
     double rotation_deg = 0.0;
   };
 
+  // The rotation a pair's own pose must differ from the model's by to contradict it: the
+  // lower contradiction_clear_rotation_deg when that pose explains clearly more of the
+  // pair's matches than the model does (by contradiction_clear_margin of them), else
+  // contradiction_min_rotation_deg.
+  double RotationBar(int own_inliers, int explained, std::size_t matches) const {
+    const bool clear = own_inliers - explained >=
+                       options_.contradiction_clear_margin * static_cast<double>(matches);
+    return clear ? options_.contradiction_clear_rotation_deg
+                 : options_.contradiction_min_rotation_deg;
+  }
+
   // Also adds to `support` (image id -> matches) the matches of each photo's other checked
   // pairs that the model explains.
   std::vector<Contradiction> FindContradictions(const Reconstruction& model,
@@ -1078,7 +1089,7 @@ class Mapper {
           own->num_inliers <
               options_.contradiction_min_pair_share * static_cast<double>(x1.size()) ||
           own->median_parallax_deg < options_.contradiction_min_parallax_deg ||
-          rotation_deg <= options_.contradiction_min_rotation_deg) {
+          rotation_deg <= RotationBar(own->num_inliers, explained, x1.size())) {
         supports();
         continue;
       }
@@ -1570,6 +1581,13 @@ bool IncrementalMapperOptions::Check(std::string* error) const {
   } else if (!(contradiction_min_rotation_deg >= 0 && contradiction_min_rotation_deg < 180)) {
     m << "contradiction_min_rotation_deg must be 0 (off) or in (0, 180), got "
       << contradiction_min_rotation_deg;
+  } else if (!(contradiction_clear_rotation_deg > 0 &&
+               contradiction_clear_rotation_deg <= contradiction_min_rotation_deg) &&
+             contradiction_min_rotation_deg > 0) {
+    m << "contradiction_clear_rotation_deg must be in (0, contradiction_min_rotation_deg], got "
+      << contradiction_clear_rotation_deg;
+  } else if (!(contradiction_clear_margin > 0 && contradiction_clear_margin <= 1)) {
+    m << "contradiction_clear_margin must be in (0, 1], got " << contradiction_clear_margin;
   } else if (contradiction_min_matches < 8) {
     m << "contradiction_min_matches must be at least 8, got " << contradiction_min_matches;
   } else if (!(contradiction_min_pair_share > 0 && contradiction_min_pair_share <= 1)) {

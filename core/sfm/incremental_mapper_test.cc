@@ -784,7 +784,9 @@ TEST(ReconstructIncrementally, FinalOutlierFilterLeavesGaussianNoiseAlone) {
 // photo 6), and its matches with photo 4 (every fourth point they share) are true. PnP places
 // it by the larger, self-consistent false set; the model then explains few of the pair with
 // photo 4, whose own relative pose explains them all, 50 deg away: the check removes photo 5.
-SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_deg) {
+SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_deg,
+                                            double orbit_deg = 50.0,
+                                            double contradiction_clear_rotation_deg = 5.0) {
   SyntheticSceneOptions scene_options = NoisyRingOptions();
   scene_options.k1 = 0.0;
   scene_options.outlier_fraction = 0.0;
@@ -794,15 +796,15 @@ SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_de
   const SyntheticScene& scene = run.scene;
   constexpr int kMisplaced = 5;
   MapperInput input = InputFromScene(scene, scene_options.focal);
-  // The false pose: photo 5 orbited 50 deg about the vertical through the origin, the way that
-  // brings it nearer photo 6.
+  // The false pose: photo 5 orbited `orbit_deg` about the vertical through the origin, the way
+  // that brings it nearer photo 6.
   const Rigid3d& truth = scene.images[kMisplaced].cam_from_world;
   Rigid3d misplaced;
   double nearest = std::numeric_limits<double>::infinity();
   for (const double sign : {-1.0, 1.0}) {
-    const Rigid3d orbit(
-        Eigen::Quaterniond(Eigen::AngleAxisd(sign * 50.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ())),
-        Eigen::Vector3d::Zero());
+    const Rigid3d orbit(Eigen::Quaterniond(Eigen::AngleAxisd(sign * orbit_deg * M_PI / 180.0,
+                                                             Eigen::Vector3d::UnitZ())),
+                        Eigen::Vector3d::Zero());
     const Rigid3d candidate = truth * orbit;
     const double distance =
         (candidate.CenterInWorld() - scene.images[kMisplaced + 1].cam_from_world.CenterInWorld())
@@ -858,6 +860,7 @@ SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_de
   input.tracks = BuildTracks(pair_matches);
   IncrementalMapperOptions options;
   options.contradiction_min_rotation_deg = contradiction_min_rotation_deg;
+  options.contradiction_clear_rotation_deg = contradiction_clear_rotation_deg;
   Progress progress;
   run.models = ReconstructIncrementally(input, options, progress, CancelToken(), &run.summary);
   return run;
@@ -886,6 +889,31 @@ TEST(ReconstructIncrementally, APhotoWhosePoseContradictsAVerifiedPairIsRemoved)
     logged = logged || line.starts_with("removed view5 from the model");
   }
   EXPECT_TRUE(logged);
+}
+
+// A photo placed 10 deg off: under the 15 deg bar, but its pair with photo 4, whose own
+// relative pose explains every match while the model explains few, is a clear contradiction
+// at 5 deg (contradiction_clear_rotation_deg).
+TEST(ReconstructIncrementally, AClearContradictionRemovesAPhotoPlacedAFewDegreesOff) {
+  const SceneRun lenient = ReconstructRingWithAMisplacedPhoto(15.0, /*orbit_deg=*/10.0,
+                                                              /*clear_rotation_deg=*/15.0);
+  ASSERT_FALSE(lenient.models.empty());
+  ASSERT_TRUE(lenient.models[0].images.count(5)) << "the scene places photo 5 wrongly";
+  const Errors misplaced = Compare(lenient.models[0], lenient.scene);
+  std::cout << "15 deg bar only: " << lenient.models[0].images.size() << " photos, max rotation "
+            << misplaced.max_rotation_deg << " deg\n";
+  EXPECT_GT(misplaced.max_rotation_deg, 5.0);
+  EXPECT_EQ(lenient.summary.num_contradicted, 0);
+
+  const SceneRun checked = ReconstructRingWithAMisplacedPhoto(15.0, /*orbit_deg=*/10.0);
+  ASSERT_FALSE(checked.models.empty());
+  EXPECT_EQ(checked.summary.num_contradicted, 1);
+  EXPECT_FALSE(checked.models[0].images.count(5));
+  EXPECT_EQ(checked.models[0].images.size(), 9u);
+  const Errors errors = Compare(checked.models[0], checked.scene);
+  std::cout << "with the clear bar: " << checked.models[0].images.size() << " photos, max rotation "
+            << errors.max_rotation_deg << " deg\n";
+  EXPECT_LT(errors.max_rotation_deg, 0.3);
 }
 
 TEST(ReconstructIncrementally, Cancellation) {

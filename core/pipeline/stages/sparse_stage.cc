@@ -15,6 +15,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <map>
 #include <mutex>
 
@@ -270,6 +271,20 @@ void RecordFinalCalibration(const Reconstruction& best,
     auto camera = best.cameras.find(id);
     if (camera == best.cameras.end()) continue;
     record["final_focal"] = camera->second.focal;
+    // Without EXIF a focal length needs three photos to be estimated (self-calibration from
+    // the pairs, or the focal search's trial models): a smaller model keeps the guess, and its
+    // angles are only approximate (rendered rings: 2-photo models at the guess 9-14 deg off).
+    const auto photos =
+        std::count_if(best.images.begin(), best.images.end(),
+                      [&](const auto& image) { return image.second.camera_id == id; });
+    if (record["initial_focal_source"] == "default" && photos < 3) {
+      record["final_focal_warning"] =
+          "a guess: the model has " + std::to_string(photos) +
+          " photo(s) of this camera and, without EXIF, estimating it needs at least 3; the "
+          "model's angles and shape are only approximate";
+      LOG_WARNING << "sparse: camera " << id << ": focal " << camera->second.focal << " px is "
+                  << record["final_focal_warning"].get<std::string>();
+    }
     auto stddev = summary.intrinsics_stddev.find(id);
     if (stddev == summary.intrinsics_stddev.end()) continue;
     const IntrinsicsStddev& s = stddev->second;
