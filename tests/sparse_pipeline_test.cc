@@ -45,27 +45,37 @@ std::vector<Rigid3d> Cameras(int n) {
   return poses;
 }
 
-TEST(SparsePipeline, RecoversRenderedCamerasWithoutExif) {
-  const fs::path root =
-      fs::temp_directory_path() / ("reconduit_sparse_pipeline_test_" + std::to_string(getpid()));
+// Renders the box room from cameras [first, end) of `truth` into root/images as JPEG files
+// without EXIF and runs the pipeline up to sparse in root/work.
+void RenderAndRunSparse(const fs::path& root,
+                        const std::vector<Rigid3d>& truth,
+                        std::size_t first,
+                        std::size_t end,
+                        Workspace* workspace) {
   fs::remove_all(root);
   fs::create_directories(root / "images");
   const TexturedScene scene = MakeBoxRoomScene(3);
   const Camera camera = Camera::FromFocal(kWidth, kHeight, kFocal);
-  const std::vector<Rigid3d> truth = Cameras(8);
-  Workspace workspace;
-  for (std::size_t i = 0; i < truth.size(); ++i) {
+  for (std::size_t i = first; i < end; ++i) {
     const RenderedView view = RenderScene(scene, camera, truth[i]);
     const fs::path path = root / "images" / ("view" + std::to_string(i) + ".jpg");
     ASSERT_TRUE(cv::imwrite(path.string(), view.image, {cv::IMWRITE_JPEG_QUALITY, 95}));
-    workspace.images.push_back({path, path.filename().string()});
+    workspace->images.push_back({path, path.filename().string()});
   }
-  workspace.work_dir = root / "work";
-  workspace.output_dir = root / "output";
+  workspace->work_dir = root / "work";
+  workspace->output_dir = root / "output";
   auto stages = CreatePipelineStages("sparse");
   ASSERT_TRUE(stages.ok()) << stages.status();
-  const PipelineResult result = RunPipeline(*stages, workspace, PipelineOptions(), CancelToken());
+  const PipelineResult result = RunPipeline(*stages, *workspace, PipelineOptions(), CancelToken());
   ASSERT_EQ(result.status, StageStatus::kSuccess) << result.failed_stage << ": " << result.message;
+}
+
+TEST(SparsePipeline, RecoversRenderedCamerasWithoutExif) {
+  const fs::path root =
+      fs::temp_directory_path() / ("reconduit_sparse_pipeline_test_" + std::to_string(getpid()));
+  const std::vector<Rigid3d> truth = Cameras(8);
+  Workspace workspace;
+  ASSERT_NO_FATAL_FAILURE(RenderAndRunSparse(root, truth, 0, truth.size(), &workspace));
 
   auto model = ReadReconstructionJson(workspace.StageDir("sparse") / "model_0.json");
   ASSERT_TRUE(model.ok()) << model.status();
@@ -115,24 +125,9 @@ TEST(SparsePipeline, RecoversRenderedCamerasWithoutExif) {
 TEST(SparsePipeline, TwoPhotosWithoutExifSayTheirFocalIsAGuess) {
   const fs::path root =
       fs::temp_directory_path() / ("reconduit_sparse_two_photos_test_" + std::to_string(getpid()));
-  fs::remove_all(root);
-  fs::create_directories(root / "images");
-  const TexturedScene scene = MakeBoxRoomScene(3);
-  const Camera camera = Camera::FromFocal(kWidth, kHeight, kFocal);
   const std::vector<Rigid3d> truth = Cameras(8);
   Workspace workspace;
-  for (std::size_t i = 3; i < 5; ++i) {
-    const RenderedView view = RenderScene(scene, camera, truth[i]);
-    const fs::path path = root / "images" / ("view" + std::to_string(i) + ".jpg");
-    ASSERT_TRUE(cv::imwrite(path.string(), view.image, {cv::IMWRITE_JPEG_QUALITY, 95}));
-    workspace.images.push_back({path, path.filename().string()});
-  }
-  workspace.work_dir = root / "work";
-  workspace.output_dir = root / "output";
-  auto stages = CreatePipelineStages("sparse");
-  ASSERT_TRUE(stages.ok()) << stages.status();
-  const PipelineResult result = RunPipeline(*stages, workspace, PipelineOptions(), CancelToken());
-  ASSERT_EQ(result.status, StageStatus::kSuccess) << result.failed_stage << ": " << result.message;
+  ASSERT_NO_FATAL_FAILURE(RenderAndRunSparse(root, truth, 3, 5, &workspace));
   std::ifstream calibration_file(workspace.StageDir("sparse") / "calibration.json");
   const nlohmann::json calibration = nlohmann::json::parse(calibration_file);
   const nlohmann::json& record = calibration.at("cameras").at(0);
