@@ -216,9 +216,10 @@ struct IncrementalMapperOptions {
   double contradiction_min_rotation_deg = 15.0;  // 0 or (0, 180)
   // When the pair's own pose explains at least `contradiction_clear_margin` of its matches more
   // than the model does, a smaller difference contradicts: `contradiction_clear_rotation_deg`.
-  // (Rendered ring of 10 photos 36 deg apart: a photo PnP placed 11 deg off on two-view points
-  // of a wall; its pair with a neighbour: own pose 681 of 690 matches, the model 430. On the
-  // real sets every pair checked is explained better by the model than by its own pose.)
+  // (Rendered ring of 10 photos 36 deg apart: a photo PnP placed 11 deg off on points two of
+  // its neighbours had triangulated; its pair with a neighbour: own pose 681 of 690 matches,
+  // the model 430. On the real sets every pair checked is explained better by the model than
+  // by its own pose.)
   double contradiction_clear_rotation_deg = 5.0;  // (0, contradiction_min_rotation_deg]
   double contradiction_clear_margin = 0.2;        // (0, 1]
   int contradiction_min_matches = 50;             // [8, ...]

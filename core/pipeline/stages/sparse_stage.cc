@@ -273,7 +273,7 @@ void RecordFinalCalibration(const Reconstruction& best,
     record["final_focal"] = camera->second.focal;
     // Without EXIF a focal length needs three photos to be estimated (self-calibration from
     // the pairs, or the focal search's trial models): a smaller model keeps the guess, and its
-    // angles are only approximate (rendered rings: 2-photo models at the guess 9-14 deg off).
+    // angles are only approximate (rendered rings: 2-photo models 7-21 deg off).
     const auto photos =
         std::count_if(best.images.begin(), best.images.end(),
                       [&](const auto& image) { return image.second.camera_id == id; });
