@@ -99,6 +99,14 @@ TEST(IncrementalMapperOptions, DefaultsAreValid) {
   loose_filter.final_outlier_multiple = 2.0;  // Would cut into Gaussian noise.
   EXPECT_FALSE(loose_filter.Check(&error));
   EXPECT_NE(error.find("final_outlier_multiple"), std::string::npos);
+  IncrementalMapperOptions clear_above_bar;
+  clear_above_bar.contradiction_clear_rotation_deg = 20.0;  // Above the 15 deg bar.
+  EXPECT_FALSE(clear_above_bar.Check(&error));
+  EXPECT_NE(error.find("contradiction_clear_rotation_deg"), std::string::npos);
+  IncrementalMapperOptions no_margin;
+  no_margin.contradiction_clear_margin = 0.0;
+  EXPECT_FALSE(no_margin.Check(&error));
+  EXPECT_NE(error.find("contradiction_clear_margin"), std::string::npos);
 }
 
 // 10 photos on a ring, 1500 points, f = 800 px, k1 = -0.05, 0.5 px noise, 5 % outliers.
@@ -866,24 +874,34 @@ SceneRun ReconstructRingWithAMisplacedPhoto(double contradiction_min_rotation_de
   return run;
 }
 
-TEST(ReconstructIncrementally, APhotoWhosePoseContradictsAVerifiedPairIsRemoved) {
-  const SceneRun unchecked = ReconstructRingWithAMisplacedPhoto(/*off=*/0.0);
-  ASSERT_FALSE(unchecked.models.empty());
-  ASSERT_TRUE(unchecked.models[0].images.count(5)) << "the scene places photo 5 wrongly";
-  const Errors misplaced = Compare(unchecked.models[0], unchecked.scene);
-  std::cout << "unchecked: " << unchecked.models[0].images.size() << " photos, max rotation "
+// The run kept photo 5 in its model, misplaced: the model's worst rotation over `min_deg`.
+void ExpectPhotoFiveMisplaced(const SceneRun& run, const char* label, double min_deg) {
+  ASSERT_FALSE(run.models.empty());
+  ASSERT_TRUE(run.models[0].images.count(5)) << "the scene places photo 5 wrongly";
+  const Errors misplaced = Compare(run.models[0], run.scene);
+  std::cout << label << ": " << run.models[0].images.size() << " photos, max rotation "
             << misplaced.max_rotation_deg << " deg\n";
-  EXPECT_GT(misplaced.max_rotation_deg, 20.0);
+  EXPECT_GT(misplaced.max_rotation_deg, min_deg);
+}
 
-  const SceneRun checked = ReconstructRingWithAMisplacedPhoto(15.0);
-  ASSERT_FALSE(checked.models.empty());
-  EXPECT_EQ(checked.summary.num_contradicted, 1);
-  EXPECT_FALSE(checked.models[0].images.count(5));
-  EXPECT_EQ(checked.models[0].images.size(), 9u);
-  const Errors errors = Compare(checked.models[0], checked.scene);
-  std::cout << "checked: " << checked.models[0].images.size() << " photos, max rotation "
+// The check removed photo 5, and only it: the other 9 photos within 0.3 deg.
+void ExpectPhotoFiveRemoved(const SceneRun& run, const char* label) {
+  ASSERT_FALSE(run.models.empty());
+  EXPECT_EQ(run.summary.num_contradicted, 1);
+  EXPECT_FALSE(run.models[0].images.count(5));
+  EXPECT_EQ(run.models[0].images.size(), 9u);
+  const Errors errors = Compare(run.models[0], run.scene);
+  std::cout << label << ": " << run.models[0].images.size() << " photos, max rotation "
             << errors.max_rotation_deg << " deg\n";
   EXPECT_LT(errors.max_rotation_deg, 0.3);
+}
+
+TEST(ReconstructIncrementally, APhotoWhosePoseContradictsAVerifiedPairIsRemoved) {
+  const SceneRun unchecked = ReconstructRingWithAMisplacedPhoto(/*off=*/0.0);
+  ASSERT_NO_FATAL_FAILURE(ExpectPhotoFiveMisplaced(unchecked, "unchecked", 20.0));
+
+  const SceneRun checked = ReconstructRingWithAMisplacedPhoto(15.0);
+  ASSERT_NO_FATAL_FAILURE(ExpectPhotoFiveRemoved(checked, "checked"));
   bool logged = false;
   for (const std::string& line : checked.summary.log) {
     logged = logged || line.starts_with("removed view5 from the model");
@@ -897,23 +915,11 @@ TEST(ReconstructIncrementally, APhotoWhosePoseContradictsAVerifiedPairIsRemoved)
 TEST(ReconstructIncrementally, AClearContradictionRemovesAPhotoPlacedAFewDegreesOff) {
   const SceneRun lenient = ReconstructRingWithAMisplacedPhoto(15.0, /*orbit_deg=*/10.0,
                                                               /*clear_rotation_deg=*/15.0);
-  ASSERT_FALSE(lenient.models.empty());
-  ASSERT_TRUE(lenient.models[0].images.count(5)) << "the scene places photo 5 wrongly";
-  const Errors misplaced = Compare(lenient.models[0], lenient.scene);
-  std::cout << "15 deg bar only: " << lenient.models[0].images.size() << " photos, max rotation "
-            << misplaced.max_rotation_deg << " deg\n";
-  EXPECT_GT(misplaced.max_rotation_deg, 5.0);
+  ASSERT_NO_FATAL_FAILURE(ExpectPhotoFiveMisplaced(lenient, "15 deg bar only", 5.0));
   EXPECT_EQ(lenient.summary.num_contradicted, 0);
 
   const SceneRun checked = ReconstructRingWithAMisplacedPhoto(15.0, /*orbit_deg=*/10.0);
-  ASSERT_FALSE(checked.models.empty());
-  EXPECT_EQ(checked.summary.num_contradicted, 1);
-  EXPECT_FALSE(checked.models[0].images.count(5));
-  EXPECT_EQ(checked.models[0].images.size(), 9u);
-  const Errors errors = Compare(checked.models[0], checked.scene);
-  std::cout << "with the clear bar: " << checked.models[0].images.size() << " photos, max rotation "
-            << errors.max_rotation_deg << " deg\n";
-  EXPECT_LT(errors.max_rotation_deg, 0.3);
+  ASSERT_NO_FATAL_FAILURE(ExpectPhotoFiveRemoved(checked, "with the clear bar"));
 }
 
 TEST(ReconstructIncrementally, Cancellation) {
